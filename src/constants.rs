@@ -1,0 +1,46 @@
+// The constants shared by the CPU tracer and the shader. This file is the
+// only place they are written: build.rs `include!`s it and emits them as
+// `#define`s into the generated `constants.glsl`. Keep it free of `use` and
+// of anything but plain `pub const` items of type u32 or f32.
+
+/// Most generations of reflection/refraction `--max-depth` may ask for.
+pub const MAX_DEPTH_LIMIT: u32 = 16;
+/// Entries of the explicit ray-tree stack: a depth-first walk of a binary
+/// tree of depth D never holds more than D + 2 pending rays.
+pub const STACK_SIZE: u32 = MAX_DEPTH_LIMIT + 2;
+/// Secondary-ray origins are moved off the surface along the geometric
+/// normal by this fraction of the scene's size (never by a multiple of |p|).
+pub const EPS_OFFSET_REL: f32 = 2.0e-5;
+/// Most cells on one grid axis (cell ranges pack 10 bits per axis).
+pub const GRID_MAX_DIM: u32 = 1023;
+/// Target cells per finite primitive for the grid heuristic.
+pub const GRID_DENSITY: f32 = 3.0;
+/// Primitive kinds (low 4 bits of `Prim::kind_mat`).
+pub const KIND_SPHERE: u32 = 0;
+pub const KIND_PLANE: u32 = 1;
+pub const KIND_TRIANGLE: u32 = 2;
+pub const KIND_POLYGON: u32 = 3;
+pub const KIND_BOX: u32 = 4;
+pub const KIND_QUADRIC: u32 = 5;
+pub const KIND_CONE: u32 = 6;
+/// `Prim::data` of a triangle without vertex normals.
+pub const NO_NORMALS: u32 = 0xFFFF_FFFF;
+/// Feature bits (`Globals::trace.y`): what the scene uses. The shader is
+/// specialized on them so unused paths compile out.
+pub const FEAT_SPHERE: u32 = 1;
+pub const FEAT_PLANE: u32 = 2;
+pub const FEAT_TRIANGLE: u32 = 4;
+pub const FEAT_POLYGON: u32 = 8;
+pub const FEAT_BOX: u32 = 16;
+pub const FEAT_QUADRIC: u32 = 32;
+pub const FEAT_CONE: u32 = 64;
+pub const FEAT_REFLECT: u32 = 128;
+pub const FEAT_REFRACT: u32 = 256;
+pub const FEAT_ABSORB: u32 = 512;
+pub const FEAT_TRANSMIT_HIGHLIGHT: u32 = 1024;
+pub const FEAT_FALLOFF: u32 = 2048;
+pub const FEAT_SMOOTH: u32 = 4096;
+/// Sampling modes (`Globals::image.w`).
+pub const SAMPLING_CENTERS: u32 = 0;
+pub const SAMPLING_JITTER: u32 = 1;
+pub const SAMPLING_CORNERS: u32 = 2;

@@ -1,0 +1,13 @@
+//! whitted: a recursive (Whitted-style) ray tracer. The main path is a GLSL
+//! compute shader dispatched through Vulkan (`gpu`); beside it runs a CPU
+//! mirror of the same algorithm on the same packed data (`cpu`, `trace`).
+//!
+//! Data flow: `scene::load` → `pack::pack` → `cpu::render` | `gpu::render`
+//! → `output::write`.
+
+pub mod constants;
+pub mod cpu;
+pub mod output;
+pub mod pack;
+pub mod scene;
+pub mod trace;

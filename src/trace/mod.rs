@@ -1,0 +1,66 @@
+//! The tracer, generic over its float type. Each file is the twin of a
+//! shader file (see ARCHITECTURE.md): same names, same order of arithmetic.
+
+pub mod grid;
+pub mod intersect;
+pub mod math;
+pub mod sample;
+pub mod shade;
+pub mod tree;
+
+use crate::pack::layout::{Globals, Light, Material, Prim};
+use crate::pack::Packed;
+
+/// Borrowed view of the packed arrays: what the shader's buffers hold.
+#[derive(Clone, Copy)]
+pub struct SceneView<'a> {
+    pub globals: &'a Globals,
+    pub prims: &'a [Prim],
+    pub extra: &'a [[f32; 4]],
+    pub materials: &'a [Material],
+    pub lights: &'a [Light],
+    pub cell_start: &'a [u32],
+    pub refs: &'a [u32],
+}
+
+impl<'a> SceneView<'a> {
+    pub fn new(p: &'a Packed) -> Self {
+        SceneView {
+            globals: &p.globals,
+            prims: &p.prims,
+            extra: &p.extra,
+            materials: &p.materials,
+            lights: &p.lights,
+            cell_start: &p.cell_start,
+            refs: &p.refs,
+        }
+    }
+
+    #[inline(always)]
+    pub fn has(&self, feature: u32) -> bool {
+        self.globals.trace[1] & feature != 0
+    }
+}
+
+/// Ray counts as the SPD defines them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct RayStats {
+    pub eye: u64,
+    pub eye_hit: u64,
+    pub reflect: u64,
+    pub refract: u64,
+    pub shadow: u64,
+}
+
+impl RayStats {
+    pub fn add(&mut self, o: &RayStats) {
+        self.eye += o.eye;
+        self.eye_hit += o.eye_hit;
+        self.reflect += o.reflect;
+        self.refract += o.refract;
+        self.shadow += o.shadow;
+    }
+    pub fn total(&self) -> u64 {
+        self.eye + self.reflect + self.refract + self.shadow
+    }
+}

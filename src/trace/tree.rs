@@ -1,0 +1,126 @@
+//! The ray tree, walked iteratively: twin of `shaders/trace.glsl`.
+//!
+//! An explicit stack in a fixed order (the GPU has no recursion and must
+//! reproduce it): pop a ray, find its closest hit, add its weighted local
+//! intensity, then push the refracted ray and after it the reflected one
+//! (so reflection is walked first). A ray's weight is the product of the
+//! k_r/k_t along its path times its medium's Beer–Lambert attenuation, so
+//! I = I_L + k_r I_R + k_t I_T is summed in place. A branch ends at the
+//! depth limit or when its weight (largest channel) falls under min weight.
+
+use super::grid::{closest_hit, Work};
+use super::intersect::{normals, RayPre};
+use super::math::{Ray, Real, V3};
+use super::shade::{reflect_dir, refract_dir, shade};
+use super::{RayStats, SceneView};
+use crate::constants::*;
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry<F> {
+    o: V3<F>,
+    d: V3<F>,
+    /// Accumulated weight of this ray's contribution.
+    w: V3<F>,
+    /// Absorption coefficient of the medium the ray travels in.
+    medium: V3<F>,
+    depth: u32,
+}
+
+/// Intensity arriving along an eye ray.
+pub fn trace_ray<F: Real>(
+    s: &SceneView,
+    ray: Ray<F>,
+    stats: &mut RayStats,
+    work: &mut Work,
+) -> V3<F> {
+    let g = s.globals;
+    let max_depth = g.trace[0];
+    let min_weight = F::of(g.params[0]);
+    let eps = F::of(g.params[1]);
+    let background = V3::<F>::of(&g.background);
+    let mut stack = [Entry::<F>::default(); STACK_SIZE as usize];
+    stack[0] = Entry {
+        o: ray.o,
+        d: ray.d,
+        w: V3::splat(F::one()),
+        medium: V3::zero(),
+        depth: 0,
+    };
+    let mut sp = 1usize;
+    let mut color = V3::zero();
+    while sp > 0 {
+        sp -= 1;
+        let e = stack[sp];
+        let r = Ray { o: e.o, d: e.d };
+        let pre = RayPre::new(e.d);
+        let Some((h, pi)) = closest_hit(s, &r, &pre, F::infinity(), work) else {
+            // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
+            if e.medium.max_elem() <= F::zero() {
+                color += e.w.mul(background);
+            }
+            continue;
+        };
+        if e.depth == 0 {
+            stats.eye_hit += 1;
+        }
+        let mut w = e.w;
+        if s.has(FEAT_ABSORB) && e.medium.max_elem() > F::zero() {
+            w = w.mul((-e.medium * h.t).map(|x| x.exp()));
+        }
+        let prim = &s.prims[pi as usize];
+        let mat = &s.materials[prim.material() as usize];
+        let p = e.o + e.d * h.t;
+        let (ng, ns) = normals(prim, s.extra, p, &h);
+        let front = e.d.dot(ng) < F::zero();
+        let n = if front { ns } else { -ns };
+        let ngf = if front { ng } else { -ng };
+        let local = shade(s, mat, p, e.d, n, ngf, front, stats, work);
+        color += w.mul(local);
+        if e.depth >= max_depth {
+            continue;
+        }
+        let mut refl = V3::<F>::of(&mat.kr);
+        let kt = V3::<F>::of(&mat.kt);
+        if s.has(FEAT_REFRACT) && kt.max_elem() > F::zero() {
+            let ior = F::of(mat.kr[3]);
+            let eta = if front { F::one() / ior } else { ior };
+            match refract_dir(e.d, n, eta) {
+                // Total internal reflection: the transmitted share reflects.
+                None => refl += kt,
+                Some(t) => {
+                    let wt = w.mul(kt);
+                    if wt.max_elem() >= min_weight {
+                        stats.refract += 1;
+                        stack[sp] = Entry {
+                            o: p - ngf * eps,
+                            d: t,
+                            w: wt,
+                            medium: if front {
+                                V3::of(&mat.absorb)
+                            } else {
+                                V3::zero()
+                            },
+                            depth: e.depth + 1,
+                        };
+                        sp += 1;
+                    }
+                }
+            }
+        }
+        if refl.max_elem() > F::zero() {
+            let wr = w.mul(refl);
+            if wr.max_elem() >= min_weight {
+                stats.reflect += 1;
+                stack[sp] = Entry {
+                    o: p + ngf * eps,
+                    d: reflect_dir(e.d, n),
+                    w: wr,
+                    medium: e.medium,
+                    depth: e.depth + 1,
+                };
+                sp += 1;
+            }
+        }
+    }
+    color
+}
