@@ -1,0 +1,269 @@
+//! `whitted` end to end: renders, stats, and every kind of bad input
+//! (exit code 2, a message naming file:line:column, no output written).
+
+use assert_cmd::Command;
+use std::path::Path;
+
+fn whitted() -> Command {
+    Command::cargo_bin("whitted").unwrap()
+}
+
+const SCENE: &str = "[camera]\nfrom = [0, -8, 3]\nat = [0, 0, 0]\nwidth = 32\nheight = 24\n\n\
+[[light]]\nposition = [5, -5, 10]\n\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 1]\nradius = 1\n";
+
+fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn renders_png_with_stats() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "s.toml", SCENE);
+    let out = dir.path().join("out.png");
+    let stats = dir.path().join("stats.json");
+    whitted()
+        .args([
+            "render",
+            "-q",
+            "--backend",
+            "cpu",
+            "--width",
+            "40",
+            "--spp",
+            "4",
+        ])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .arg("--stats")
+        .arg(&stats)
+        .assert()
+        .success();
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (40, 24));
+    // the sphere is in the middle, the background (black) in the corner
+    assert_ne!(img.get_pixel(20, 12).0, [0, 0, 0]);
+    assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0]);
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(j["backend"], "cpu");
+    assert_eq!(j["width"], 40);
+    assert_eq!(j["height"], 24);
+    assert_eq!(j["rays"]["eye"], 40 * 24 * 4);
+    let hit = j["rays"]["eye_hit"].as_u64().unwrap();
+    assert!(hit > 0 && hit < 40 * 24 * 4);
+    assert_eq!(j["rays"]["shadow"].as_u64().unwrap(), {
+        // every hit faces the light or not; at most one feeler per hit
+        let s = j["rays"]["shadow"].as_u64().unwrap();
+        assert!(s <= hit && s > hit / 4);
+        s
+    });
+    for k in ["load", "build", "render", "total"] {
+        assert!(j["seconds"][k].as_f64().unwrap() >= 0.0);
+    }
+    assert_eq!(j["grid"]["cells"].as_array().unwrap().len(), 3);
+    assert!(j["grid"]["refs"].as_u64().unwrap() >= 1);
+}
+
+#[test]
+fn exr_and_linear_png_keep_linear_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(
+        dir.path(),
+        "s.toml",
+        &SCENE.replace("[camera]", "background = 0.5\n[camera]"),
+    );
+    let png = dir.path().join("lin.png");
+    whitted()
+        .args(["render", "-q", "--encoding", "linear"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&png)
+        .assert()
+        .success();
+    assert_eq!(
+        image::open(&png).unwrap().to_rgb8().get_pixel(0, 0).0,
+        [128, 128, 128]
+    );
+    let srgb = dir.path().join("srgb.png");
+    whitted()
+        .args(["render", "-q"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&srgb)
+        .assert()
+        .success();
+    assert_eq!(
+        image::open(&srgb).unwrap().to_rgb8().get_pixel(0, 0).0,
+        [188, 188, 188]
+    );
+    let exr = dir.path().join("out.exr");
+    whitted()
+        .args(["render", "-q"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&exr)
+        .assert()
+        .success();
+    let img = image::open(&exr).unwrap().to_rgb32f();
+    assert_eq!(img.get_pixel(0, 0).0, [0.5, 0.5, 0.5]);
+}
+
+#[test]
+fn corner_sampling_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "s.toml", SCENE);
+    let stats = dir.path().join("st.json");
+    whitted()
+        .args(["render", "-q", "--sampling", "corners"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("c.png"))
+        .arg("--stats")
+        .arg(&stats)
+        .assert()
+        .success();
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(j["rays"]["eye"], 33 * 25);
+}
+
+/// Runs a render of `text` saved as `name` and expects exit code 2, stderr
+/// containing `fragment`, and no output file.
+fn bad_input(name: &str, text: &str, fragment: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), name, text);
+    let out = dir.path().join("out.png");
+    let a = whitted()
+        .args(["render", "-q"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .code(2);
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(err.contains(fragment), "stderr {err:?} lacks {fragment:?}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists(), "an output file was written");
+    // nothing half-written left beside it either
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+}
+
+#[test]
+fn bad_scenes_exit_2_with_position_and_write_nothing() {
+    bad_input(
+        "a.toml",
+        &SCENE.replace("radius = 1", "radus = 1"),
+        "a.toml:13:1",
+    );
+    bad_input(
+        "b.toml",
+        &SCENE.replace("radius = 1", "radius = 0"),
+        "b.toml:13:10",
+    );
+    bad_input(
+        "c.toml",
+        &SCENE.replace("radius = 1", "radius = nan"),
+        "c.toml:13:10",
+    );
+    bad_input(
+        "d.toml",
+        &SCENE.replace("radius = 1", "radius = inf"),
+        "d.toml:13:10",
+    );
+    bad_input(
+        "e.toml",
+        &SCENE.replace("at = [0, 0, 0]\n", ""),
+        "e.toml:1:1",
+    );
+    bad_input(
+        "f.toml",
+        &format!("{SCENE}\n[[object]]\ntype = \"polygon\"\nvertices = [[0,0,0],[1,0,0],[2,0,0]]\n"),
+        "f.toml:17:12",
+    );
+    bad_input(
+        "g.toml",
+        &format!("{SCENE}\n[material.x]\nior = -1\n"),
+        "g.toml:16:7",
+    );
+    bad_input(
+        "h.toml",
+        &format!("{SCENE}\n[[object]]\ntype = \"mesh\"\nfile = \"missing.obj\"\n"),
+        "h.toml:17:8",
+    );
+    bad_input(
+        "t.nff",
+        "v\nfrom 0 -5 0\nat 0 0 0\nup 0 0 1\nangle 40\nhither 1\nresolution 8 8\ns 0 0 0",
+        "t.nff:8:",
+    );
+    bad_input(
+        "u.nff",
+        "v\nfrom 0 -5 0\nat 0 0 0\nup 0 0 1\nangle 40\nhither 1\nresolution 8 8\nq 1 2 3\n",
+        "u.nff:8:1",
+    );
+}
+
+#[test]
+fn missing_scene_and_bad_options_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let a = whitted()
+        .args(["render", "-q", "/nonexistent/scene.toml", "-o"])
+        .arg(&out)
+        .assert()
+        .code(2);
+    assert!(String::from_utf8_lossy(&a.get_output().stderr).contains("/nonexistent/scene.toml"));
+    let scene = write(dir.path(), "s.toml", SCENE);
+    for args in [
+        vec!["--max-depth", "99"],
+        vec!["--min-weight", "-1"],
+        vec!["--grid", "4x4"],
+        vec!["--spp", "0"],
+        vec!["--sampling", "diagonal"],
+    ] {
+        whitted()
+            .args(["render", "-q"])
+            .arg(&scene)
+            .args(&args)
+            .arg("-o")
+            .arg(&out)
+            .assert()
+            .code(2);
+    }
+    whitted()
+        .args(["render", "-q"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("o.jpg"))
+        .assert()
+        .code(2);
+    assert!(!out.exists());
+}
+
+#[test]
+fn help_documents_every_option() {
+    let a = whitted().args(["render", "--help"]).assert().success();
+    let help = String::from_utf8_lossy(&a.get_output().stdout).to_string();
+    for opt in [
+        "--width",
+        "--height",
+        "--backend",
+        "--max-depth",
+        "--min-weight",
+        "--spp",
+        "--sampling",
+        "--encoding",
+        "--grid",
+        "--threads",
+        "--stats",
+        "--quiet",
+    ] {
+        assert!(help.contains(opt), "render --help lacks {opt}");
+    }
+}
