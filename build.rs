@@ -31,6 +31,7 @@ fn const_u32(name: &str) -> u32 {
         "MAX_DEPTH_LIMIT" => MAX_DEPTH_LIMIT,
         "STACK_SIZE" => STACK_SIZE,
         "GRID_MAX_DIM" => GRID_MAX_DIM,
+        "SHADOW_CACHE_LIGHTS" => SHADOW_CACHE_LIGHTS,
         "KIND_SPHERE" => KIND_SPHERE,
         "KIND_PLANE" => KIND_PLANE,
         "KIND_TRIANGLE" => KIND_TRIANGLE,

@@ -11,6 +11,9 @@ pub const STACK_SIZE: u32 = MAX_DEPTH_LIMIT + 2;
 /// Secondary-ray origins are moved off the surface along the geometric
 /// normal by this fraction of the scene's size (never by a multiple of |p|).
 pub const EPS_OFFSET_REL: f32 = 2.0e-5;
+/// Lights whose last opaque shadow blocker is remembered (the shadow
+/// cache); lights past this many are traced without it.
+pub const SHADOW_CACHE_LIGHTS: u32 = 8;
 /// Most cells on one grid axis (cell ranges pack 10 bits per axis).
 pub const GRID_MAX_DIM: u32 = 1023;
 /// Target cells per finite primitive for the grid heuristic.

@@ -7,6 +7,8 @@
 
 pub mod constants;
 pub mod cpu;
+pub mod export;
+pub mod gen;
 pub mod output;
 pub mod pack;
 pub mod scene;

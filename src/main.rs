@@ -27,6 +27,48 @@ enum Command {
     ///
     /// Example: whitted render scenes/showcase.toml -o showcase.png --spp 4
     Render(RenderArgs),
+    /// Write a procedural scene (for benchmarks) as NFF.
+    ///
+    /// Example: whitted generate --count 100000 -o spheres-100k.nff
+    Generate(GenerateArgs),
+    /// Convert a scene to POV-Ray 3.7 (.pov) or NFF (.nff), e.g. to time
+    /// POV-Ray on the same scene (scripts/povray-compare.sh).
+    Export(ExportArgs),
+}
+
+#[derive(Args)]
+struct GenerateArgs {
+    /// Spheres scattered in the cube [-1,1]³, radius 0.3 × their mean
+    /// spacing, over a floor, lit by three lights (see src/gen.rs).
+    #[arg(long, default_value_t = 10_000, value_parser = clap::value_parser!(u64).range(1..=50_000_000))]
+    count: u64,
+    /// Seed of the placement (same seed, same scene).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output .nff file.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Scene file (.toml or .nff).
+    scene: PathBuf,
+    /// Output: .pov (POV-Ray 3.7) or .nff.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Image width written into the POV camera's aspect (default: the scene's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (default: the scene's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Generations of secondary rays (POV-Ray: max_trace_level = this + 1).
+    #[arg(long, default_value_t = 5)]
+    max_depth: u32,
+    /// Adaptive depth cut-off (POV-Ray: adc_bailout).
+    #[arg(long, default_value_t = 1.0 / 256.0, value_parser = parse_weight)]
+    min_weight: f32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -215,6 +257,7 @@ fn render(a: RenderArgs) -> Result<()> {
             "width": frame.width,
             "height": frame.height,
             "rays": frame.stats,
+            "work": { "intersection_tests": frame.work.tests, "cells_visited": frame.work.cells },
             "seconds": {
                 "load": t_load,
                 "build": t_build,
@@ -249,6 +292,32 @@ fn render(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+fn generate(a: GenerateArgs) -> Result<()> {
+    let scene = whitted::gen::random_spheres(a.count as usize, a.seed);
+    let text = whitted::export::to_nff(&scene)?;
+    write_atomic(&a.output, text.as_bytes()).map_err(user)
+}
+
+fn export(a: ExportArgs) -> Result<()> {
+    let scene = scene::load(&a.scene).map_err(user)?;
+    let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let text = match ext {
+        "pov" => whitted::export::to_pov(
+            &scene,
+            a.width.unwrap_or(scene.camera.width),
+            a.height.unwrap_or(scene.camera.height),
+            a.max_depth,
+            a.min_weight,
+        )?,
+        "nff" => whitted::export::to_nff(&scene).map_err(user)?,
+        _ => bail!(UserError(anyhow!(
+            "{}: unknown export format (use .pov or .nff)",
+            a.output.display()
+        ))),
+    };
+    write_atomic(&a.output, text.as_bytes()).map_err(user)
+}
+
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -271,6 +340,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render(a),
+        Command::Generate(a) => generate(a),
+        Command::Export(a) => export(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -152,9 +152,7 @@ impl Builder {
         kind: u32,
         mat: u32,
         data: u32,
-        a: [f32; 4],
-        b: [f32; 4],
-        c: [f32; 4],
+        [a, b, c]: [[f32; 4]; 3],
         bb: Bounds,
     ) {
         self.bounded.push((
@@ -216,9 +214,7 @@ impl Builder {
             KIND_TRIANGLE,
             mat,
             data,
-            v4(v[0], 0.0),
-            v4(v[1], 0.0),
-            v4(v[2], 0.0),
+            [v4(v[0], 0.0), v4(v[1], 0.0), v4(v[2], 0.0)],
             bb,
         );
     }
@@ -237,9 +233,7 @@ impl Builder {
                     KIND_SPHERE,
                     mat,
                     0,
-                    v4(c, r),
-                    [(r * r) as f32, 0.0, 0.0, 0.0],
-                    [0.0; 4],
+                    [v4(c, r), [(r * r) as f32, 0.0, 0.0, 0.0], [0.0; 4]],
                     bb,
                 );
             }
@@ -269,7 +263,7 @@ impl Builder {
                     0.0,
                 ];
                 let bb = Self::points_bounds(&vs);
-                self.push_bounded(KIND_POLYGON, mat, data, v4(n, d), b, [0.0; 4], bb);
+                self.push_bounded(KIND_POLYGON, mat, data, [v4(n, d), b, [0.0; 4]], bb);
             }
             Shape::Triangle { vertices, normals } => {
                 self.triangle(mat, *vertices, normals.as_deref().copied());
@@ -288,7 +282,7 @@ impl Builder {
                     lo: lo.to_array(),
                     hi: hi.to_array(),
                 };
-                self.push_bounded(KIND_BOX, mat, 0, v4(lo, 0.0), v4(hi, 0.0), [0.0; 4], bb);
+                self.push_bounded(KIND_BOX, mat, 0, [v4(lo, 0.0), v4(hi, 0.0), [0.0; 4]], bb);
             }
             Shape::Quadric { coefficients, clip } => {
                 self.features |= FEAT_QUADRIC;
@@ -308,9 +302,7 @@ impl Builder {
                             KIND_QUADRIC,
                             mat,
                             data,
-                            v4(lo, 1.0),
-                            v4(hi, 0.0),
-                            [0.0; 4],
+                            [v4(lo, 1.0), v4(hi, 0.0), [0.0; 4]],
                             bb,
                         );
                     }
@@ -347,9 +339,7 @@ impl Builder {
                     KIND_CONE,
                     mat,
                     0,
-                    v4(b, r0),
-                    v4(axis, r1),
-                    [len as f32, side as f32, 0.0, 0.0],
+                    [v4(b, r0), v4(axis, r1), [len as f32, side as f32, 0.0, 0.0]],
                     bb,
                 );
             }

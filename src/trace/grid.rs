@@ -12,17 +12,38 @@
 use super::intersect::{intersect, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::SceneView;
-use crate::pack::layout::{cell_unpack, Prim};
+use crate::constants::SHADOW_CACHE_LIGHTS;
+use crate::pack::layout::Prim;
 
-/// Traversal state: the current cell and where the ray leaves it.
+/// Traversal state: the current cell and where the ray leaves it on each
+/// axis. Per-axis values are arrays so the axis can be a runtime index.
 #[derive(Clone, Copy, Debug)]
 pub struct Dda<F> {
     pub cell: [i32; 3],
     pub step: [i32; 3],
+    /// Distance along the ray to the current cell's far boundary plane on
+    /// each axis (∞ for an axis the ray does not move along).
+    pub next: [F; 3],
     /// Where the ray segment inside the grid ends.
     pub t_end: F,
-    /// Cell being left last (−1: none yet).
-    pub prev: [i32; 3],
+    /// The axis of the last step (3: none yet) and the cell coordinate on
+    /// that axis before it: the previous cell differs from the current one
+    /// only there.
+    pub prev_axis: usize,
+    pub prev_coord: i32,
+    /// The ray's origin and 1/direction, per axis.
+    pub o: [F; 3],
+    pub inv: [F; 3],
+}
+
+/// Distance to the far boundary of cell `dda.cell` on `axis`, computed
+/// afresh from the cell index (no error accumulates along the ray).
+#[inline(always)]
+pub fn dda_boundary<F: Real>(s: &SceneView, dda: &Dda<F>, axis: usize) -> F {
+    let g = s.globals;
+    let edge = dda.cell[axis] + if dda.step[axis] > 0 { 1 } else { 0 };
+    let plane = F::of(g.grid_min[axis]) + F::of(edge as f32) * F::of(g.grid_cell[axis]);
+    (plane - dda.o[axis]) * dda.inv[axis]
 }
 
 /// Clips the ray to the grid; `None` when it misses the grid or the grid is empty.
@@ -31,92 +52,102 @@ pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
     if g.grid_min[3] == 0.0 {
         return None;
     }
-    let lo = V3::<F>::of(&g.grid_min);
-    let hi = V3::<F>::of(&g.grid_max);
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
     let mut t0 = F::zero();
     let mut t1 = tmax;
     for i in 0..3 {
-        let o = ray.o.get(i);
-        if ray.d.get(i) == F::zero() {
-            if o < lo.get(i) || o > hi.get(i) {
+        let (lo, hi) = (F::of(g.grid_min[i]), F::of(g.grid_max[i]));
+        if d[i] == F::zero() {
+            if o[i] < lo || o[i] > hi {
                 return None;
             }
             continue;
         }
-        let inv = pre.inv_d.get(i);
-        let ta = (lo.get(i) - o) * inv;
-        let tb = (hi.get(i) - o) * inv;
+        let ta = (lo - o[i]) * inv[i];
+        let tb = (hi - o[i]) * inv[i];
         t0 = t0.max(ta.min(tb));
         t1 = t1.min(ta.max(tb));
     }
     if t0 > t1 {
         return None;
     }
-    let cs = V3::<F>::of(&g.grid_cell);
-    let p = ray.o + ray.d * t0;
-    let mut cell = [0i32; 3];
-    let mut step = [0i32; 3];
+    let mut dda = Dda {
+        cell: [0; 3],
+        step: [0; 3],
+        next: [F::infinity(); 3],
+        t_end: t1,
+        prev_axis: 3,
+        prev_coord: -1,
+        o,
+        inv,
+    };
     for i in 0..3 {
         let n = g.grid_dims[i] as i32;
-        let c = ((p.get(i) - lo.get(i)) / cs.get(i)).floor();
+        let p = o[i] + d[i] * t0;
+        let c = ((p - F::of(g.grid_min[i])) / F::of(g.grid_cell[i])).floor();
         let c = if c.is_nan() { 0 } else { c.to_f32() as i32 };
-        cell[i] = c.clamp(0, n - 1);
-        let d = ray.d.get(i);
-        step[i] = if d > F::zero() {
+        dda.cell[i] = c.clamp(0, n - 1);
+        dda.step[i] = if d[i] > F::zero() {
             1
-        } else if d < F::zero() {
+        } else if d[i] < F::zero() {
             -1
         } else {
             0
         };
+        if dda.step[i] != 0 {
+            dda.next[i] = dda_boundary(s, &dda, i);
+        }
     }
-    Some(Dda {
-        cell,
-        step,
-        t_end: t1,
-        prev: [-1, -1, -1],
-    })
+    Some(dda)
 }
 
-/// Distance along the ray to the far boundary of the current cell on each
-/// axis, computed afresh from the cell index (no accumulated error).
+/// Where the ray leaves the current cell, and across which axis.
 #[inline(always)]
-pub fn dda_exit<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, dda: &Dda<F>) -> (F, usize) {
-    let g = s.globals;
-    let mut best = F::infinity();
-    let mut axis = 0;
-    for i in 0..3 {
-        if dda.step[i] == 0 {
-            continue;
-        }
-        let edge = dda.cell[i] + if dda.step[i] > 0 { 1 } else { 0 };
-        let plane = F::of(g.grid_min[i]) + F::of(edge as f32) * F::of(g.grid_cell[i]);
-        let t = (plane - ray.o.get(i)) * pre.inv_d.get(i);
-        if t < best {
-            best = t;
-            axis = i;
-        }
+pub fn dda_exit<F: Real>(dda: &Dda<F>) -> (F, usize) {
+    let n = dda.next;
+    if n[0] <= n[1] && n[0] <= n[2] {
+        (n[0], 0)
+    } else if n[1] <= n[2] {
+        (n[1], 1)
+    } else {
+        (n[2], 2)
     }
-    (best, axis)
 }
 
 /// Moves to the next cell along `axis`; false when the ray leaves the grid.
 #[inline(always)]
 pub fn dda_advance<F: Real>(s: &SceneView, dda: &mut Dda<F>, axis: usize) -> bool {
-    dda.prev = dda.cell;
+    dda.prev_axis = axis;
+    dda.prev_coord = dda.cell[axis];
     dda.cell[axis] += dda.step[axis];
+    dda.next[axis] = dda_boundary(s, dda, axis);
     dda.cell[axis] >= 0 && dda.cell[axis] < s.globals.grid_dims[axis] as i32
 }
 
-/// True when the primitive was already tested in the previous cell.
+/// True when the primitive was already tested in the previous cell. It is
+/// listed in the current cell, so its cell range holds the current cell;
+/// the previous cell differs only on the last step's axis, so checking
+/// that one coordinate suffices.
 #[inline(always)]
-pub fn seen_before(prim: &Prim, prev: [i32; 3]) -> bool {
-    if prev[0] < 0 {
+pub fn seen_before<F>(prim: &Prim, dda: &Dda<F>) -> bool {
+    if dda.prev_axis > 2 {
         return false;
     }
-    let lo = cell_unpack(prim.cell_lo);
-    let hi = cell_unpack(prim.cell_hi);
-    (0..3).all(|i| prev[i] >= lo[i] as i32 && prev[i] <= hi[i] as i32)
+    let shift = 10 * dda.prev_axis as u32;
+    let lo = ((prim.cell_lo >> shift) & 1023) as i32;
+    let hi = ((prim.cell_hi >> shift) & 1023) as i32;
+    dda.prev_coord >= lo && dda.prev_coord <= hi
+}
+
+/// A ray visits at most dims.x + dims.y + dims.z − 2 cells (each step moves
+/// one axis one cell, monotonically); the loops stop there at the latest so
+/// that a NaN ray cannot loop forever. Never reached by a finite ray.
+#[inline(always)]
+pub fn dda_max_cells(s: &SceneView) -> u32 {
+    let d = s.globals.grid_dims;
+    d[0] + d[1] + d[2]
 }
 
 #[inline(always)]
@@ -125,11 +156,18 @@ fn cell_index(s: &SceneView, c: [i32; 3]) -> usize {
     (c[0] as u32 + d[0] * (c[1] as u32 + d[1] * c[2] as u32)) as usize
 }
 
-/// Counters of intersection work, for tests and profiling.
+/// Per-thread scratch of the tracer: counters of intersection work (for
+/// tests and profiling) and the shadow cache.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Work {
     pub tests: u64,
     pub cells: u64,
+    /// Shadow cache (Haines & Greenberg's "last blocker"): per light, 1 + the
+    /// index of the opaque primitive that last blocked a feeler to it (0:
+    /// none). Tested first, it answers most shadowed feelers without a
+    /// traversal. It never changes a result: an opaque blocker makes the
+    /// transmittance exactly zero whatever else the feeler crosses.
+    pub shadow_cache: [u32; SHADOW_CACHE_LIGHTS as usize],
 }
 
 /// The nearest hit along the ray with t < tmax: (hit, primitive index).
@@ -153,14 +191,14 @@ pub fn closest_hit<F: Real>(
     let Some(mut dda) = dda_setup(s, ray, pre, best_t) else {
         return best;
     };
-    loop {
+    for _ in 0..dda_max_cells(s) {
         work.cells += 1;
-        let (t_exit, axis) = dda_exit(s, ray, pre, &dda);
+        let (t_exit, axis) = dda_exit(&dda);
         let ci = cell_index(s, dda.cell);
         let (start, end) = (s.cell_start[ci] as usize, s.cell_start[ci + 1] as usize);
         for &r in &s.refs[start..end] {
             let prim = &s.prims[r as usize];
-            if seen_before(prim, dda.prev) {
+            if seen_before(prim, &dda) {
                 continue;
             }
             work.tests += 1;
@@ -176,6 +214,7 @@ pub fn closest_hit<F: Real>(
             return best;
         }
     }
+    best
 }
 
 /// Light reaching the end of a shadow feeler of length `dist`: every
@@ -186,15 +225,31 @@ pub fn transmittance<F: Real>(
     ray: &Ray<F>,
     pre: &RayPre<F>,
     dist: F,
+    light: usize,
     work: &mut Work,
 ) -> V3<F> {
     let g = s.globals;
+    let cached = if light < SHADOW_CACHE_LIGHTS as usize {
+        work.shadow_cache[light]
+    } else {
+        0
+    };
+    if cached != 0 {
+        work.tests += 1;
+        if intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist).is_some() {
+            return V3::zero();
+        }
+    }
     let mut trans = V3::splat(F::one());
     for i in g.counts[0]..g.counts[1] {
         let prim = &s.prims[i as usize];
         work.tests += 1;
         if intersect(prim, s.extra, ray, pre, dist).is_some() {
-            trans = trans.mul(V3::of(&s.materials[prim.material() as usize].kt));
+            let kt = V3::of(&s.materials[prim.material() as usize].kt);
+            trans = trans.mul_elem(kt);
+            if kt.max_elem() <= F::zero() && light < SHADOW_CACHE_LIGHTS as usize {
+                work.shadow_cache[light] = i + 1;
+            }
             if trans.max_elem() <= F::zero() {
                 return V3::zero();
             }
@@ -203,19 +258,23 @@ pub fn transmittance<F: Real>(
     let Some(mut dda) = dda_setup(s, ray, pre, dist) else {
         return trans;
     };
-    loop {
+    for _ in 0..dda_max_cells(s) {
         work.cells += 1;
-        let (t_exit, axis) = dda_exit(s, ray, pre, &dda);
+        let (t_exit, axis) = dda_exit(&dda);
         let ci = cell_index(s, dda.cell);
         let (start, end) = (s.cell_start[ci] as usize, s.cell_start[ci + 1] as usize);
         for &r in &s.refs[start..end] {
             let prim = &s.prims[r as usize];
-            if seen_before(prim, dda.prev) {
+            if seen_before(prim, &dda) {
                 continue;
             }
             work.tests += 1;
             if intersect(prim, s.extra, ray, pre, dist).is_some() {
-                trans = trans.mul(V3::of(&s.materials[prim.material() as usize].kt));
+                let kt = V3::of(&s.materials[prim.material() as usize].kt);
+                trans = trans.mul_elem(kt);
+                if kt.max_elem() <= F::zero() && light < SHADOW_CACHE_LIGHTS as usize {
+                    work.shadow_cache[light] = r + 1;
+                }
                 if trans.max_elem() <= F::zero() {
                     return V3::zero();
                 }
@@ -225,6 +284,7 @@ pub fn transmittance<F: Real>(
             return trans;
         }
     }
+    trans
 }
 
 /// Brute force over every primitive: the reference the grid must equal.

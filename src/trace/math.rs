@@ -83,7 +83,7 @@ impl<F: Real> V3<F> {
         self / self.length()
     }
     #[inline(always)]
-    pub fn mul(self, o: Self) -> Self {
+    pub fn mul_elem(self, o: Self) -> Self {
         v3(self.x * o.x, self.y * o.y, self.z * o.z)
     }
     #[inline(always)]
@@ -92,11 +92,9 @@ impl<F: Real> V3<F> {
     }
     #[inline(always)]
     pub fn get(self, i: usize) -> F {
-        match i {
-            0 => self.x,
-            1 => self.y,
-            _ => self.z,
-        }
+        // An array index, not a match: a runtime axis must not become a
+        // jump table in the inner loops.
+        [self.x, self.y, self.z][i]
     }
     #[inline(always)]
     pub fn map(self, f: impl Fn(F) -> F) -> Self {

@@ -55,7 +55,7 @@ pub fn eye_dir<F: Real>(g: &Globals, x: f32, y: f32) -> V3<F> {
 pub fn strata(spp: u32) -> (u32, u32) {
     let spp = spp.max(1);
     let mut ny = (spp as f64).sqrt().floor() as u32;
-    while ny > 1 && spp % ny != 0 {
+    while ny > 1 && !spp.is_multiple_of(ny) {
         ny -= 1;
     }
     (spp / ny.max(1), ny.max(1))

@@ -45,13 +45,13 @@ pub fn shade<F: Real>(
 ) -> V3<F> {
     let g = s.globals;
     let eps = F::of(g.params[1]);
-    let mut c = V3::<F>::of(&mat.ka).mul(V3::of(&g.ambient));
+    let mut c = V3::<F>::of(&mat.ka).mul_elem(V3::of(&g.ambient));
     let v = -d;
     let kd = V3::<F>::of(&mat.kd);
     let ksr = F::of(mat.ks[0]);
     let kst = F::of(mat.ks[2]);
     let highlight_t = s.has(FEAT_TRANSMIT_HIGHLIGHT) && kst > F::zero();
-    for light in s.lights {
+    for (li_index, light) in s.lights.iter().enumerate() {
         let lv = V3::<F>::of(&light.pos) - p;
         let dist = lv.length();
         let l = lv / dist;
@@ -68,11 +68,11 @@ pub fn shade<F: Real>(
         };
         let sray = Ray { o, d: l };
         let pre = RayPre::new(l);
-        let tr = transmittance(s, &sray, &pre, dist, work);
+        let tr = transmittance(s, &sray, &pre, dist, li_index, work);
         if tr.max_elem() <= F::zero() {
             continue;
         }
-        let mut li = V3::<F>::of(&light.color).mul(tr);
+        let mut li = V3::<F>::of(&light.color).mul_elem(tr);
         if s.has(FEAT_FALLOFF) {
             let f = V3::<F>::of(&light.falloff);
             let att = F::one() / (f.x + f.y * dist + f.z * dist * dist);
@@ -100,7 +100,7 @@ pub fn shade<F: Real>(
                 }
             }
         }
-        c += li.mul(term);
+        c += li.mul_elem(term);
     }
     c
 }

@@ -56,7 +56,7 @@ pub fn trace_ray<F: Real>(
         let Some((h, pi)) = closest_hit(s, &r, &pre, F::infinity(), work) else {
             // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
             if e.medium.max_elem() <= F::zero() {
-                color += e.w.mul(background);
+                color += e.w.mul_elem(background);
             }
             continue;
         };
@@ -65,7 +65,7 @@ pub fn trace_ray<F: Real>(
         }
         let mut w = e.w;
         if s.has(FEAT_ABSORB) && e.medium.max_elem() > F::zero() {
-            w = w.mul((-e.medium * h.t).map(|x| x.exp()));
+            w = w.mul_elem((-e.medium * h.t).map(|x| x.exp()));
         }
         let prim = &s.prims[pi as usize];
         let mat = &s.materials[prim.material() as usize];
@@ -75,7 +75,7 @@ pub fn trace_ray<F: Real>(
         let n = if front { ns } else { -ns };
         let ngf = if front { ng } else { -ng };
         let local = shade(s, mat, p, e.d, n, ngf, front, stats, work);
-        color += w.mul(local);
+        color += w.mul_elem(local);
         if e.depth >= max_depth {
             continue;
         }
@@ -88,7 +88,7 @@ pub fn trace_ray<F: Real>(
                 // Total internal reflection: the transmitted share reflects.
                 None => refl += kt,
                 Some(t) => {
-                    let wt = w.mul(kt);
+                    let wt = w.mul_elem(kt);
                     if wt.max_elem() >= min_weight {
                         stats.refract += 1;
                         stack[sp] = Entry {
@@ -108,7 +108,7 @@ pub fn trace_ray<F: Real>(
             }
         }
         if refl.max_elem() > F::zero() {
-            let wr = w.mul(refl);
+            let wr = w.mul_elem(refl);
             if wr.max_elem() >= min_weight {
                 stats.reflect += 1;
                 stack[sp] = Entry {
