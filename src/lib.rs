@@ -11,3 +11,5 @@ pub mod output;
 pub mod pack;
 pub mod scene;
 pub mod trace;
+pub mod gpu;
+pub mod metrics;
