@@ -313,10 +313,18 @@ impl Instance {
             .map(|h| h.size)
             .max()
             .unwrap_or(0);
+        let subgroup_ok = subgroup
+            .supported_stages
+            .contains(vk::ShaderStageFlags::COMPUTE)
+            && subgroup.supported_operations.contains(
+                vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC,
+            );
         let unusable = if api < vk::API_VERSION_1_1 {
             Some(format!("supports only Vulkan {}", version_string(api)))
         } else if family.is_none() {
             Some("has no compute queue".to_string())
+        } else if !subgroup_ok {
+            Some("lacks subgroup arithmetic in compute shaders".to_string())
         } else {
             None
         };
