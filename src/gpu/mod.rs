@@ -334,6 +334,14 @@ impl Gpu {
         binds.push((8, &counters));
         kernel.bind(&binds)?;
 
+        if !kernel.warmed.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            // An empty tile: every invocation is out of range, nothing is
+            // traced or counted, but the driver compiles the pipeline now
+            // rather than inside the first timed tile.
+            cmds.run_once(|d, cmd| {
+                cmds.record_dispatch(d, cmd, &kernel, bytemuck::bytes_of(&[0u32; 4]), [1, 1, 1], Some(&counters))
+            })?;
+        }
         let spp = if corners { 1 } else { g.image[2] };
         let tiles = dispatch::tiles(lw, lh, opts.tile, spp, MAX_TILE_SAMPLES);
         let t0 = Instant::now();
@@ -396,12 +404,23 @@ impl Gpu {
         mode: ProbeMode,
         items: &[ProbeItem],
     ) -> Result<Vec<ProbeResult>, GpuError> {
+        self.probe_with("probe", shaders::PROBE, packed, mode, items)
+    }
+
+    fn probe_with(
+        &self,
+        name: &'static str,
+        spirv: &[u8],
+        packed: &Packed,
+        mode: ProbeMode,
+        items: &[ProbeItem],
+    ) -> Result<Vec<ProbeResult>, GpuError> {
         if items.is_empty() {
             return Ok(Vec::new());
         }
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         self.check_fits(packed, 0)?;
-        let kernel = self.kernel("probe", shaders::PROBE, &[0, 1, 2, 3, 4, 5, 6, 9, 10], &[])?;
+        let kernel = self.kernel(name, spirv, &[0, 1, 2, 3, 4, 5, 6, 9, 10], &[])?;
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed)?;
         let input = Buffer::host_input(&self.ctx, "probe items", bytemuck::cast_slice(items))?;

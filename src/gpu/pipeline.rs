@@ -19,6 +19,9 @@ pub struct Kernel {
     pub(crate) pipeline: vk::Pipeline,
     bindings: Vec<u32>,
     pub(crate) push_size: u32,
+    /// Some drivers (llvmpipe) compile a pipeline at its first dispatch;
+    /// `Gpu` makes an empty one first so render timings exclude it.
+    pub(crate) warmed: std::sync::atomic::AtomicBool,
 }
 
 impl Kernel {
@@ -60,6 +63,7 @@ impl Kernel {
             pipeline: vk::Pipeline::null(),
             bindings: bindings.to_vec(),
             push_size,
+            warmed: Default::default(),
         };
         // Each step stores its handle in `k` at once, so an early return
         // drops `k` and destroys whatever was made.
