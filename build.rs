@@ -191,7 +191,10 @@ fn main() {
         println!("cargo:rerun-if-changed={}", p.display());
     }
     let mut compiled = Vec::new();
-    for p in sources.iter().filter(|p| p.extension().is_some_and(|e| e == "comp")) {
+    for p in sources
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "comp"))
+    {
         compile(p, &out);
         compiled.push(p.file_stem().unwrap().to_string_lossy().into_owned());
     }

@@ -7,9 +7,9 @@
 
 pub mod constants;
 pub mod cpu;
+pub mod gpu;
+pub mod metrics;
 pub mod output;
 pub mod pack;
 pub mod scene;
 pub mod trace;
-pub mod gpu;
-pub mod metrics;

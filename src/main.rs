@@ -366,8 +366,7 @@ fn choose_backend(b: Backend, g: &GpuArgs) -> Result<Chosen> {
     match b {
         Backend::Cpu => Ok(Chosen::Cpu(None)),
         Backend::Gpu => Ok(Chosen::Gpu(
-            Gpu::new(&gpu_options(g))
-                .map_err(|e| user(anyhow!("--backend gpu: {e}")))?,
+            Gpu::new(&gpu_options(g)).map_err(|e| user(anyhow!("--backend gpu: {e}")))?,
         )),
         Backend::Auto => {
             let devices = match gpu::devices() {
@@ -424,7 +423,11 @@ fn auto_reason(devices: &[gpu::DeviceInfo]) -> String {
         "no usable GPU ({})",
         devices
             .iter()
-            .map(|d| format!("{}: {}", d.name, d.unusable.as_deref().unwrap_or("not a GPU")))
+            .map(|d| format!(
+                "{}: {}",
+                d.name,
+                d.unusable.as_deref().unwrap_or("not a GPU")
+            ))
             .collect::<Vec<_>>()
             .join("; ")
     )
@@ -450,7 +453,10 @@ fn devices(a: DevicesArgs) -> Result<()> {
         Ok(l) => l,
         Err(e) => {
             if a.json {
-                println!("{}", serde_json::json!({ "devices": [], "error": e.to_string() }));
+                println!(
+                    "{}",
+                    serde_json::json!({ "devices": [], "error": e.to_string() })
+                );
             } else {
                 println!("{e}");
                 println!("--backend auto renders on the CPU mirror; --backend gpu fails.");
@@ -474,7 +480,12 @@ fn devices(a: DevicesArgs) -> Result<()> {
     }
     for d in &list {
         println!("{}: {}", d.index, d.name);
-        println!("    type: {}; driver: {}; Vulkan {}", d.kind.name(), d.driver, d.api_version);
+        println!(
+            "    type: {}; driver: {}; Vulkan {}",
+            d.kind.name(),
+            d.driver,
+            d.api_version
+        );
         println!(
             "    maxStorageBufferRange: {} bytes ({:.0} MiB); maxComputeWorkGroupInvocations: {}; \
              subgroup size: {}",
@@ -521,8 +532,11 @@ fn validate(a: ValidateArgs) -> Result<bool> {
         output::format_of(path).map_err(user)?;
         let img = c.diff_image();
         let mut bytes = Vec::new();
-        img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
-            .context("cannot encode the difference image")?;
+        img.write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .context("cannot encode the difference image")?;
         write_atomic(path, &bytes).map_err(user)?;
     }
     if let Some(path) = &a.json {
@@ -547,7 +561,10 @@ fn validate(a: ValidateArgs) -> Result<bool> {
         println!("  mean abs error   {:.3e}", c.mean_abs);
         println!("  RMSE             {:.3e}", c.rmse);
         println!("  PSNR             {:.1} dB", c.psnr);
-        println!("  mean FLIP        {:.5} (8-bit sRGB; limit {})", c.mean_flip, tol.mean_flip);
+        println!(
+            "  mean FLIP        {:.5} (8-bit sRGB; limit {})",
+            c.mean_flip, tol.mean_flip
+        );
         println!(
             "  pixels over {:e} {} of {} ({:.3}%; limit {:.3}%)",
             tol.pixel,
@@ -558,7 +575,13 @@ fn validate(a: ValidateArgs) -> Result<bool> {
         );
         println!("  rays       {:>12} {:>12} {:>8}", "cpu", "gpu", "diff");
         for r in &c.rays {
-            println!("  {:<10} {:>12} {:>12} {:>+8}", r.kind, r.reference, r.test, r.diff());
+            println!(
+                "  {:<10} {:>12} {:>12} {:>+8}",
+                r.kind,
+                r.reference,
+                r.test,
+                r.diff()
+            );
         }
         println!(
             "  time       cpu {:.3} s, gpu {:.3} s{}",

@@ -163,7 +163,10 @@ pub fn compare(reference: &Frame, test: &Frame, tol: &Tolerance) -> Comparison {
         .zip(b)
         .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
         .collect();
-    let pixels_over = pixel_error.iter().filter(|&&e| e as f64 > tol.pixel || e.is_nan()).count();
+    let pixels_over = pixel_error
+        .iter()
+        .filter(|&&e| e as f64 > tol.pixel || e.is_nan())
+        .count();
     let fraction_over = pixels_over as f64 / a.len().max(1) as f64;
     let ra = output::to_rgb8(reference, Encoding::Srgb);
     let rb = output::to_rgb8(test, Encoding::Srgb);
@@ -179,7 +182,10 @@ pub fn compare(reference: &Frame, test: &Frame, tol: &Tolerance) -> Comparison {
         ));
     }
     if mean_flip > tol.mean_flip || mean_flip.is_nan() {
-        failures.push(format!("mean FLIP {mean_flip:.5} (limit {})", tol.mean_flip));
+        failures.push(format!(
+            "mean FLIP {mean_flip:.5} (limit {})",
+            tol.mean_flip
+        ));
     }
     for r in &rays {
         let allowed = ((r.reference as f64 * tol.rays_relative) as u64).max(tol.rays_absolute);

@@ -130,25 +130,45 @@ macro_rules! fields {
 /// size_of. A padding slip or reordering on either side fails here.
 #[test]
 fn shader_layout_matches_rust() {
-    let expect: Vec<(&str, Vec<(String, u32)>, usize)> = vec![
+    type Members = Vec<(String, u32)>;
+    let expect: Vec<(&str, Members, usize)> = vec![
         (
             "Globals",
             fields!(Globals: cam_right, cam_up, cam_forward, background, ambient, grid_min,
                     grid_max, grid_cell, grid_dims, counts, image, trace, params),
             size_of::<Globals>(),
         ),
-        ("Prim", fields!(Prim: kind_mat, data, cell_lo, cell_hi, a, b, c), size_of::<Prim>()),
-        ("Material", fields!(Material: ka, kd, ks, kr, kt, absorb), size_of::<Material>()),
-        ("Light", fields!(Light: pos, color, falloff), size_of::<Light>()),
+        (
+            "Prim",
+            fields!(Prim: kind_mat, data, cell_lo, cell_hi, a, b, c),
+            size_of::<Prim>(),
+        ),
+        (
+            "Material",
+            fields!(Material: ka, kd, ks, kr, kt, absorb),
+            size_of::<Material>(),
+        ),
+        (
+            "Light",
+            fields!(Light: pos, color, falloff),
+            size_of::<Light>(),
+        ),
     ];
-    for (kernel, spv) in [("render", whitted::gpu::shaders::RENDER), ("probe", whitted::gpu::shaders::PROBE)] {
+    for (kernel, spv) in [
+        ("render", whitted::gpu::shaders::RENDER),
+        ("probe", whitted::gpu::shaders::PROBE),
+    ] {
         let r = reflect(spv);
         for (name, fields, size) in &expect {
             let got = r.layout(name);
             assert_eq!(&got, fields, "{kernel}.comp: struct {name}");
             // Every member is 16 bytes or a uint quadruple: the size is the
             // last offset plus 16.
-            assert_eq!(got.last().unwrap().1 as usize + 16, *size, "{kernel}.comp: size of {name}");
+            assert_eq!(
+                got.last().unwrap().1 as usize + 16,
+                *size,
+                "{kernel}.comp: size of {name}"
+            );
         }
         let arrays = [
             (1, "Prim", size_of::<Prim>()),
@@ -160,7 +180,11 @@ fn shader_layout_matches_rust() {
         ];
         for (b, elem, stride) in arrays {
             let (e, s) = r.binding_array(b);
-            assert_eq!((e.as_str(), s as usize), (elem, stride), "{kernel}.comp binding {b}");
+            assert_eq!(
+                (e.as_str(), s as usize),
+                (elem, stride),
+                "{kernel}.comp binding {b}"
+            );
         }
         if kernel == "render" {
             assert_eq!(r.binding_array(7).1, 16, "render.comp samples");
@@ -170,8 +194,14 @@ fn shader_layout_matches_rust() {
             let pr = fields!(ProbeResult: a, b, u);
             assert_eq!(r.layout("ProbeItem"), pi);
             assert_eq!(r.layout("ProbeResult"), pr);
-            assert_eq!(r.binding_array(9), ("ProbeItem".into(), size_of::<ProbeItem>() as u32));
-            assert_eq!(r.binding_array(10), ("ProbeResult".into(), size_of::<ProbeResult>() as u32));
+            assert_eq!(
+                r.binding_array(9),
+                ("ProbeItem".into(), size_of::<ProbeItem>() as u32)
+            );
+            assert_eq!(
+                r.binding_array(10),
+                ("ProbeResult".into(), size_of::<ProbeResult>() as u32)
+            );
         }
     }
 }
@@ -180,7 +210,9 @@ fn shader_layout_matches_rust() {
 
 fn render_both(p: &Packed, opts: &GpuOptions) -> Option<(Frame, Frame)> {
     let g = common::gpu()?;
-    let gf = g.render(p, opts, &|_, _| {}).unwrap_or_else(|e| panic!("GPU render: {e}"));
+    let gf = g
+        .render(p, opts, &|_, _| {})
+        .unwrap_or_else(|e| panic!("GPU render: {e}"));
     common::assert_no_validation_errors();
     let cf = cpu::render(p, &|_, _| {});
     Some((cf, gf))
@@ -198,7 +230,11 @@ fn assert_close(name: &str, cpu: &Frame, gpu: &Frame) {
         let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
             .join(format!("{}-diff.png", name.replace(['/', ' '], "_")));
         c.diff_image().save(&path).unwrap();
-        panic!("{name}: {}; difference image: {}", c.failures.join("; "), path.display());
+        panic!(
+            "{name}: {}; difference image: {}",
+            c.failures.join("; "),
+            path.display()
+        );
     }
 }
 
@@ -217,7 +253,9 @@ fn scene_files() -> Vec<PathBuf> {
 fn every_scene_matches_the_cpu_mirror() {
     for path in scene_files() {
         let p = common::load(&path, &common::small(96, 72));
-        let Some((c, g)) = render_both(&p, &GpuOptions::default()) else { return };
+        let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
+            return;
+        };
         assert_close(&path.file_name().unwrap().to_string_lossy(), &c, &g);
     }
 }
@@ -226,18 +264,51 @@ fn every_scene_matches_the_cpu_mirror() {
 fn corner_and_jittered_sampling_match() {
     let path = common::repo().join("scenes/showcase.toml");
     let cases = [
-        ("corners", Settings { sampling: Sampling::Corners, ..common::small(48, 36) }),
-        ("spp 4", Settings { spp: 4, ..common::small(40, 30) }),
-        ("spp 3", Settings { spp: 3, ..common::small(40, 30) }),
-        ("corners depth 1", Settings { sampling: Sampling::Corners, max_depth: 1, ..common::small(33, 17) }),
+        (
+            "corners",
+            Settings {
+                sampling: Sampling::Corners,
+                ..common::small(48, 36)
+            },
+        ),
+        (
+            "spp 4",
+            Settings {
+                spp: 4,
+                ..common::small(40, 30)
+            },
+        ),
+        (
+            "spp 3",
+            Settings {
+                spp: 3,
+                ..common::small(40, 30)
+            },
+        ),
+        (
+            "corners depth 1",
+            Settings {
+                sampling: Sampling::Corners,
+                max_depth: 1,
+                ..common::small(33, 17)
+            },
+        ),
     ];
     for (name, s) in cases {
         let p = common::load(&path, &s);
-        let Some((c, g)) = render_both(&p, &GpuOptions::default()) else { return };
+        let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
+            return;
+        };
         if s.sampling == Sampling::Corners {
-            assert_eq!(g.stats.eye, (s.width.unwrap() as u64 + 1) * (s.height.unwrap() as u64 + 1));
+            assert_eq!(
+                g.stats.eye,
+                (s.width.unwrap() as u64 + 1) * (s.height.unwrap() as u64 + 1)
+            );
         } else {
-            assert_eq!(g.stats.eye, (s.width.unwrap() * s.height.unwrap() * s.spp) as u64);
+            assert_eq!(
+                g.stats.eye,
+                (s.width.unwrap() * s.height.unwrap() * s.spp) as u64
+            );
         }
         assert_close(name, &c, &g);
     }
@@ -247,21 +318,41 @@ fn corner_and_jittered_sampling_match() {
 /// plumbing: they must not change a single bit or ray.
 #[test]
 fn tiles_and_workgroups_do_not_change_the_image() {
-    let p = common::load(&common::repo().join("scenes/showcase.toml"), &Settings {
-        sampling: Sampling::Corners,
-        ..common::small(50, 37)
-    });
+    let p = common::load(
+        &common::repo().join("scenes/showcase.toml"),
+        &Settings {
+            sampling: Sampling::Corners,
+            ..common::small(50, 37)
+        },
+    );
     let Some(g) = common::gpu() else { return };
     let base = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap();
     for (tile, wg) in [(7, [3, 5]), (16, [16, 4]), (5, [1, 1]), (1000, [32, 2])] {
         let calls = std::sync::atomic::AtomicU64::new(0);
         let f = g
-            .render(&p, &GpuOptions { tile, workgroup: wg, ..Default::default() }, &|_, _| {
-                calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            })
+            .render(
+                &p,
+                &GpuOptions {
+                    tile,
+                    workgroup: wg,
+                    ..Default::default()
+                },
+                &|_, _| {
+                    calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                },
+            )
             .unwrap();
-        let bits = |f: &Frame| f.pixels.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
-        assert!(bits(&f) == bits(&base), "tile {tile}, workgroup {wg:?} changed the image");
+        let bits = |f: &Frame| {
+            f.pixels
+                .iter()
+                .flatten()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert!(
+            bits(&f) == bits(&base),
+            "tile {tile}, workgroup {wg:?} changed the image"
+        );
         assert_eq!(f.stats, base.stats, "tile {tile}, workgroup {wg:?}");
         let tiles = 51u64.div_ceil(tile as u64) * 38u64.div_ceil(tile as u64);
         assert_eq!(calls.into_inner(), tiles, "one progress call per tile");
@@ -274,23 +365,46 @@ fn tiles_and_workgroups_do_not_change_the_image() {
 fn over_the_device_limits_is_a_clear_error() {
     let Some(g) = common::gpu() else { return };
     let range = g.info().max_storage_buffer_range;
-    let mut p = common::load(&common::repo().join("scenes/mesh.toml"), &common::small(8, 8));
+    let mut p = common::load(
+        &common::repo().join("scenes/mesh.toml"),
+        &common::small(8, 8),
+    );
     // A refs array one element over maxStorageBufferRange (calloc'd: cheap).
     p.refs = vec![0u32; (range / 4 + 1) as usize];
-    let e = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap_err();
-    assert!(matches!(e, GpuError::Limits(_)) && e.is_user_error(), "{e:?}");
+    let e = g
+        .render(&p, &GpuOptions::default(), &|_, _| {})
+        .unwrap_err();
+    assert!(
+        matches!(e, GpuError::Limits(_)) && e.is_user_error(),
+        "{e:?}"
+    );
     let msg = e.to_string();
-    assert!(msg.contains("refs") && msg.contains("maxStorageBufferRange") && msg.contains("--grid"), "{msg}");
+    assert!(
+        msg.contains("refs") && msg.contains("maxStorageBufferRange") && msg.contains("--grid"),
+        "{msg}"
+    );
     drop(p);
     // An output lattice over the limit.
     let side = ((range / 16) as f64).sqrt() as u32 + 2;
-    let p = common::load(&common::repo().join("scenes/mesh.toml"), &common::small(side, side));
-    let e = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap_err();
+    let p = common::load(
+        &common::repo().join("scenes/mesh.toml"),
+        &common::small(side, side),
+    );
+    let e = g
+        .render(&p, &GpuOptions::default(), &|_, _| {})
+        .unwrap_err();
     assert!(e.to_string().contains("output samples"), "{e}");
     // A workgroup over maxComputeWorkGroupInvocations.
     let big = g.info().max_compute_work_group_invocations;
     let e = g
-        .render(&p, &GpuOptions { workgroup: [big, 2], ..Default::default() }, &|_, _| {})
+        .render(
+            &p,
+            &GpuOptions {
+                workgroup: [big, 2],
+                ..Default::default()
+            },
+            &|_, _| {},
+        )
         .unwrap_err();
     assert!(e.to_string().contains("--workgroup"), "{e}");
     common::assert_no_validation_errors();
@@ -318,8 +432,22 @@ fn cli_backend_gpu_end_to_end() {
     let json = dir.path().join("s.json");
     let o = whitted()
         .env("WHITTED_VALIDATION", "1")
-        .args(["render", "scenes/showcase.toml", "--width", "64", "--height", "48", "--backend", "gpu",
-               "--tile", "32", "--workgroup", "8x4", "-q", "-o"])
+        .args([
+            "render",
+            "scenes/showcase.toml",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--backend",
+            "gpu",
+            "--tile",
+            "32",
+            "--workgroup",
+            "8x4",
+            "-q",
+            "-o",
+        ])
         .arg(&png)
         .arg("--stats")
         .arg(&json)
@@ -331,7 +459,10 @@ fn cli_backend_gpu_end_to_end() {
     assert_eq!((img.width(), img.height()), (64, 48));
     let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(s["backend"], "gpu");
-    assert_eq!(s["device"].as_str().unwrap(), common::gpu().unwrap().info().name);
+    assert_eq!(
+        s["device"].as_str().unwrap(),
+        common::gpu().unwrap().info().name
+    );
     assert!(s["seconds"]["gpu"].is_number() || s["seconds"]["gpu"].is_null());
     assert_eq!(s["rays"]["eye"], 64 * 48);
 
@@ -339,13 +470,28 @@ fn cli_backend_gpu_end_to_end() {
     let diff = dir.path().join("d.png");
     let o = whitted()
         .env("WHITTED_VALIDATION", "1")
-        .args(["validate", "scenes/quadric.toml", "--width", "40", "--height", "30", "--diff"])
+        .args([
+            "validate",
+            "scenes/quadric.toml",
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--diff",
+        ])
         .arg(&diff)
         .output()
         .unwrap();
     let out = String::from_utf8_lossy(&o.stdout);
     assert_eq!(o.status.code(), Some(0), "{out}{}", stderr_of(&o));
-    for k in ["max abs error", "PSNR", "mean FLIP", "pixels over", "shadow", "PASS"] {
+    for k in [
+        "max abs error",
+        "PSNR",
+        "mean FLIP",
+        "pixels over",
+        "shadow",
+        "PASS",
+    ] {
         assert!(out.contains(k), "validate output lacks {k}: {out}");
     }
     assert!(diff.exists());
@@ -355,13 +501,26 @@ fn cli_backend_gpu_end_to_end() {
     let o = whitted().arg("devices").output().unwrap();
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
-    for k in ["maxStorageBufferRange", "subgroup size", "--backend gpu: device", "--backend auto"] {
+    for k in [
+        "maxStorageBufferRange",
+        "subgroup size",
+        "--backend gpu: device",
+        "--backend auto",
+    ] {
         assert!(out.contains(k), "devices output lacks {k}: {out}");
     }
 
     // Bad device index and workgroup: exit 2 with the reason.
     let o = whitted()
-        .args(["render", "scenes/showcase.toml", "--backend", "gpu", "--device", "99", "-o"])
+        .args([
+            "render",
+            "scenes/showcase.toml",
+            "--backend",
+            "gpu",
+            "--device",
+            "99",
+            "-o",
+        ])
         .arg(dir.path().join("x.png"))
         .output()
         .unwrap();
@@ -390,23 +549,49 @@ fn cli_without_a_vulkan_driver() {
     let mut c = whitted();
     no_vk(&mut c);
     let o = c
-        .args(["render", "scenes/mesh.toml", "--width", "16", "--height", "12", "--backend", "gpu", "-o"])
+        .args([
+            "render",
+            "scenes/mesh.toml",
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--backend",
+            "gpu",
+            "-o",
+        ])
         .arg(&png)
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
-    assert!(stderr_of(&o).contains("no Vulkan device"), "{}", stderr_of(&o));
+    assert!(
+        stderr_of(&o).contains("no Vulkan device"),
+        "{}",
+        stderr_of(&o)
+    );
     assert!(!stderr_of(&o).contains("panicked"));
 
     let mut c = whitted();
     no_vk(&mut c);
     let o = c
-        .args(["render", "scenes/mesh.toml", "--width", "16", "--height", "12", "-o"])
+        .args([
+            "render",
+            "scenes/mesh.toml",
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "-o",
+        ])
         .arg(&png)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr_of(&o));
-    let notes: Vec<_> = stderr_of(&o).lines().filter(|l| l.contains("CPU mirror:")).map(String::from).collect();
+    let notes: Vec<_> = stderr_of(&o)
+        .lines()
+        .filter(|l| l.contains("CPU mirror:"))
+        .map(String::from)
+        .collect();
     assert_eq!(notes.len(), 1, "{}", stderr_of(&o));
     assert!(png.exists());
 

@@ -164,10 +164,20 @@ struct TestScene {
 fn scenes() -> Vec<TestScene> {
     let mut out = Vec::new();
     let base = common::small(64, 48);
-    for (name, grid) in [("probe", None), ("probe 1x1x1", Some([1, 1, 1])), ("probe 7x5x3", Some([7, 5, 3]))] {
+    for (name, grid) in [
+        ("probe", None),
+        ("probe 1x1x1", Some([1, 1, 1])),
+        ("probe 7x5x3", Some([7, 5, 3])),
+    ] {
         out.push(TestScene {
             name: name.into(),
-            packed: common::parse(PROBE_SCENE, &Settings { grid, ..base.clone() }),
+            packed: common::parse(
+                PROBE_SCENE,
+                &Settings {
+                    grid,
+                    ..base.clone()
+                },
+            ),
         });
     }
     for s in ["showcase", "mesh", "quadric"] {
@@ -200,7 +210,11 @@ impl Rng {
     }
     fn unit(&mut self) -> [f32; 3] {
         loop {
-            let v = [self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0)];
+            let v = [
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+            ];
             let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
             if l > 0.1 && l <= 1.0 {
                 return v.map(|c| c / l);
@@ -240,11 +254,17 @@ fn target(p: &Packed, i: usize) -> ([f32; 3], f32) {
         KIND_SPHERE => (xyz(&pr.a), pr.a[3]),
         KIND_TRIANGLE => {
             let c = [0, 1, 2].map(|k| (pr.a[k] + pr.b[k] + pr.c[k]) / 3.0);
-            (c, 0.6 * (sub(xyz(&pr.a), c).iter().map(|x| x * x).sum::<f32>()).sqrt())
+            (
+                c,
+                0.6 * (sub(xyz(&pr.a), c).iter().map(|x| x * x).sum::<f32>()).sqrt(),
+            )
         }
         KIND_BOX => {
             let c = [0, 1, 2].map(|k| (pr.a[k] + pr.b[k]) * 0.5);
-            (c, 0.7 * (sub(xyz(&pr.b), c).iter().map(|x| x * x).sum::<f32>()).sqrt())
+            (
+                c,
+                0.7 * (sub(xyz(&pr.b), c).iter().map(|x| x * x).sum::<f32>()).sqrt(),
+            )
         }
         KIND_POLYGON => {
             let k = pr.b[0] as usize;
@@ -260,10 +280,7 @@ fn target(p: &Packed, i: usize) -> ([f32; 3], f32) {
         // Planes and unclipped quadrics: somewhere in front of the camera.
         _ => {
             let g = &p.globals;
-            (
-                [0, 1, 2].map(|k| g.cam_forward[k] * 10.0),
-                3.0,
-            )
+            ([0, 1, 2].map(|k| g.cam_forward[k] * 10.0), 3.0)
         }
     }
 }
@@ -299,7 +316,11 @@ fn intersect_items(p: &Packed, r: &mut Rng, per_prim: usize) -> Vec<ProbeItem> {
             if d.iter().all(|&x| x == 0.0) {
                 continue;
             }
-            let tmax = if k % 5 == 0 { r.range(0.5, 40.0) } else { f32::INFINITY };
+            let tmax = if k % 5 == 0 {
+                r.range(0.5, 40.0)
+            } else {
+                f32::INFINITY
+            };
             out.push(item(o, norm(d), tmax, u));
         }
         let pr = &p.prims[i];
@@ -333,7 +354,11 @@ fn intersect_items(p: &Packed, r: &mut Rng, per_prim: usize) -> Vec<ProbeItem> {
                         let j = (axis + 1) % 3;
                         o[j] = if k % 8 == 1 { lo[j] } else { hi[j] };
                     }
-                    o[axis] = if d[axis] > 0.0 { lo[axis] - 2.0 } else { hi[axis] + 2.0 };
+                    o[axis] = if d[axis] > 0.0 {
+                        lo[axis] - 2.0
+                    } else {
+                        hi[axis] + 2.0
+                    };
                     out.push(item(o, d, f32::INFINITY, u));
                 }
             }
@@ -408,13 +433,17 @@ fn scene_rays(p: &Packed, r: &mut Rng, n: usize) -> Vec<([f32; 3], [f32; 3])> {
                 let mut d = [0.0f32; 3];
                 d[axis] = if r.below(2) == 0 { 1.0 } else { -1.0 };
                 let mut o = [0, 1, 2].map(|j| r.range(g.grid_min[j], g.grid_max[j]));
-                for j in 0..3 {
+                for (j, oj) in o.iter_mut().enumerate() {
                     if j != axis && r.below(2) == 0 && g.grid_dims[j] > 0 {
                         let cell = r.below(g.grid_dims[j] + 1) as f32;
-                        o[j] = g.grid_min[j] + cell * g.grid_cell[j];
+                        *oj = g.grid_min[j] + cell * g.grid_cell[j];
                     }
                 }
-                o[axis] = if d[axis] > 0.0 { g.grid_min[axis] - 1.0 } else { g.grid_max[axis] + 1.0 };
+                o[axis] = if d[axis] > 0.0 {
+                    g.grid_min[axis] - 1.0
+                } else {
+                    g.grid_max[axis] + 1.0
+                };
                 out.push((o, d));
             }
         }
@@ -485,7 +514,12 @@ fn cpu_probe(p: &Packed, mode: ProbeMode, it: &ProbeItem) -> ProbeResult {
             let mut st = RayStats::default();
             let c = trace_ray(&s, ray(it), &mut st, &mut work);
             res.a = [c.x, c.y, c.z, 0.0];
-            res.u = [st.eye_hit as u32, st.reflect as u32, st.refract as u32, st.shadow as u32];
+            res.u = [
+                st.eye_hit as u32,
+                st.reflect as u32,
+                st.refract as u32,
+                st.shadow as u32,
+            ];
         }
         ProbeMode::Sample => {
             let d = eye_dir::<f32>(&p.globals, it.o[0], it.o[1]);
@@ -570,7 +604,12 @@ impl Tally {
             self.items, self.flips, self.bad, self.max_ulps
         );
         assert!(self.items > 0, "{what}: no items");
-        assert_eq!(self.bad, 0, "{what}: {}", self.first_bad.as_deref().unwrap_or(""));
+        assert_eq!(
+            self.bad,
+            0,
+            "{what}: {}",
+            self.first_bad.as_deref().unwrap_or("")
+        );
         let allowed = (self.items as f64 * max_flip_fraction).floor() as usize;
         assert!(
             self.flips <= allowed,
@@ -582,9 +621,15 @@ impl Tally {
     }
 }
 
-fn run(p: &Packed, mode: ProbeMode, items: &[ProbeItem]) -> Option<Vec<(ProbeResult, ProbeResult)>> {
+fn run(
+    p: &Packed,
+    mode: ProbeMode,
+    items: &[ProbeItem],
+) -> Option<Vec<(ProbeResult, ProbeResult)>> {
     let g = common::gpu()?;
-    let gpu = g.probe(p, mode, items).unwrap_or_else(|e| panic!("probe {mode:?}: {e}"));
+    let gpu = g
+        .probe(p, mode, items)
+        .unwrap_or_else(|e| panic!("probe {mode:?}: {e}"));
     common::assert_no_validation_errors();
     assert_eq!(gpu.len(), items.len());
     Some(
@@ -649,7 +694,9 @@ fn intersect_routines_match() {
     let mut r = Rng(1);
     for sc in scenes().iter().take(1).chain(scenes().iter().skip(3)) {
         let items = intersect_items(&sc.packed, &mut r, 160);
-        let Some(res) = run(&sc.packed, ProbeMode::Intersect, &items) else { return };
+        let Some(res) = run(&sc.packed, ProbeMode::Intersect, &items) else {
+            return;
+        };
         let mut per_kind: Vec<Tally> = (0..7).map(|_| Tally::default()).collect();
         for (it, (c, g)) in items.iter().zip(&res) {
             let kind = sc.packed.prims[it.u[0] as usize].kind() as usize;
@@ -670,16 +717,35 @@ fn intersect_routines_match() {
             }
             for k in 1..4 {
                 let u = ulps(c.a[k], g.a[k]);
-                t.value(close(c.a[k], g.a[k], ulps_geometry(), abs_geometry() * c.a[1].max(1.0)), u, msg);
+                t.value(
+                    close(
+                        c.a[k],
+                        g.a[k],
+                        ulps_geometry(),
+                        abs_geometry() * c.a[1].max(1.0),
+                    ),
+                    u,
+                    msg,
+                );
             }
             for k in 0..3 {
                 let u = ulps(c.b[k], g.b[k]);
-                t.value(close(c.b[k], g.b[k], ulps_geometry(), abs_geometry()), u, msg);
+                t.value(
+                    close(c.b[k], g.b[k], ulps_geometry(), abs_geometry()),
+                    u,
+                    msg,
+                );
                 let (cs, gs) = (f32::from_bits(c.u[k]), f32::from_bits(g.u[k]));
-                t.value(close(cs, gs, ulps_geometry(), abs_geometry()), ulps(cs, gs), msg);
+                t.value(
+                    close(cs, gs, ulps_geometry(), abs_geometry()),
+                    ulps(cs, gs),
+                    msg,
+                );
             }
         }
-        let names = ["sphere", "plane", "triangle", "polygon", "box", "quadric", "cone"];
+        let names = [
+            "sphere", "plane", "triangle", "polygon", "box", "quadric", "cone",
+        ];
         for (k, t) in per_kind.iter().enumerate() {
             if t.items > 0 {
                 // 1%: tangent, grazing and edge rays are built to sit on the
@@ -698,7 +764,11 @@ fn solve_quadratic_matches() {
         let (a, b, c) = match k % 5 {
             // From roots: (t - r0)(t - r1) scaled.
             0 | 1 => {
-                let (r0, r1, s) = (r.range(-50.0, 50.0), r.range(-50.0, 50.0), r.range(0.01, 10.0));
+                let (r0, r1, s) = (
+                    r.range(-50.0, 50.0),
+                    r.range(-50.0, 50.0),
+                    r.range(0.01, 10.0),
+                );
                 (s, -s * (r0 + r1), s * r0 * r1)
             }
             // Random, many without real roots.
@@ -708,13 +778,20 @@ fn solve_quadratic_matches() {
             // Double roots, zero coefficients.
             _ => {
                 let t = r.range(-4.0, 4.0);
-                [(1.0, -2.0 * t, t * t), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 2.0, 3.0)][k % 4]
+                [
+                    (1.0, -2.0 * t, t * t),
+                    (0.0, 0.0, 1.0),
+                    (1.0, 0.0, 0.0),
+                    (0.0, 2.0, 3.0),
+                ][k % 4]
             }
         };
         items.push(item([a, b, c], [0.0; 3], 0.0, [0; 4]));
     }
     let p = common::parse(PROBE_SCENE, &common::small(8, 8));
-    let Some(res) = run(&p, ProbeMode::Solve, &items) else { return };
+    let Some(res) = run(&p, ProbeMode::Solve, &items) else {
+        return;
+    };
     let mut t = Tally::default();
     for (it, (c, g)) in items.iter().zip(&res) {
         t.items += 1;
@@ -751,7 +828,9 @@ fn refraction_and_reflection_match() {
     items.push(item([0.0, 0.0, 1.0], [0.0, 0.0, -1.0], 1.5, [0; 4]));
     items.push(item([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 1.5, [0; 4]));
     let p = common::parse(PROBE_SCENE, &common::small(8, 8));
-    let Some(res) = run(&p, ProbeMode::Refract, &items) else { return };
+    let Some(res) = run(&p, ProbeMode::Refract, &items) else {
+        return;
+    };
     let mut t = Tally::default();
     for (it, (c, g)) in items.iter().zip(&res) {
         t.items += 1;
@@ -797,7 +876,9 @@ fn sampling_matches() {
         // Integer corners, the hash on edge values.
         items.push(item([0.0, 0.0, 0.0], [0.0; 3], 0.0, [0, 0, 0, 0]));
         items.push(item([64.0, 48.0, 0.0], [0.0; 3], 0.0, [63, 47, spp - 1, 0]));
-        let Some(res) = run(&p, ProbeMode::Sample, &items) else { return };
+        let Some(res) = run(&p, ProbeMode::Sample, &items) else {
+            return;
+        };
         let mut ints = Tally::default();
         let mut dirs = Tally::default();
         for (it, (c, g)) in items.iter().zip(&res) {
@@ -807,7 +888,11 @@ fn sampling_matches() {
             // Integer hash and the exactly representable steps of rand01
             // and sample_pos: bit for bit.
             ints.value(c.u == g.u, 0, msg);
-            ints.value(c.a[3].to_bits() == g.a[3].to_bits(), ulps(c.a[3], g.a[3]), msg);
+            ints.value(
+                c.a[3].to_bits() == g.a[3].to_bits(),
+                ulps(c.a[3], g.a[3]),
+                msg,
+            );
             for k in 0..3 {
                 // eye_dir: one normalize (sqrt + division).
                 let tol = if exact() { 0 } else { 4 };
@@ -829,10 +914,23 @@ fn grid_closest_hit_matches() {
         let mut items: Vec<ProbeItem> = scene_rays(&sc.packed, &mut r, 3000)
             .into_iter()
             .enumerate()
-            .map(|(k, (o, d))| item(o, d, if k % 7 == 0 { r.range(0.5, 20.0) } else { f32::INFINITY }, [0; 4]))
+            .map(|(k, (o, d))| {
+                item(
+                    o,
+                    d,
+                    if k % 7 == 0 {
+                        r.range(0.5, 20.0)
+                    } else {
+                        f32::INFINITY
+                    },
+                    [0; 4],
+                )
+            })
             .collect();
         items.truncate(3000);
-        let Some(res) = run(&sc.packed, ProbeMode::Closest, &items) else { return };
+        let Some(res) = run(&sc.packed, ProbeMode::Closest, &items) else {
+            return;
+        };
         let mut t = Tally::default();
         for (it, (c, g)) in items.iter().zip(&res) {
             t.items += 1;
@@ -843,7 +941,12 @@ fn grid_closest_hit_matches() {
             }
             for k in 1..4 {
                 t.value(
-                    close(c.a[k], g.a[k], ulps_geometry(), abs_geometry() * c.a[1].max(1.0)),
+                    close(
+                        c.a[k],
+                        g.a[k],
+                        ulps_geometry(),
+                        abs_geometry() * c.a[1].max(1.0),
+                    ),
                     ulps(c.a[k], g.a[k]),
                     msg,
                 );
@@ -876,7 +979,9 @@ fn transmittance_matches() {
             }
             items.push(item(o, d, r.range(0.1, 30.0), [0; 4]));
         }
-        let Some(res) = run(p, ProbeMode::Transmittance, &items) else { return };
+        let Some(res) = run(p, ProbeMode::Transmittance, &items) else {
+            return;
+        };
         let mut t = Tally::default();
         for (it, (c, g)) in items.iter().zip(&res) {
             t.items += 1;
@@ -903,7 +1008,9 @@ fn full_trace_matches() {
             .into_iter()
             .map(|(o, d)| item(o, d, 0.0, [0; 4]))
             .collect();
-        let Some(res) = run(p, ProbeMode::Trace, &items) else { return };
+        let Some(res) = run(p, ProbeMode::Trace, &items) else {
+            return;
+        };
         let mut t = Tally::default();
         for (it, (c, g)) in items.iter().zip(&res) {
             t.items += 1;

@@ -17,7 +17,10 @@ fn spd_dir() -> PathBuf {
 fn spd_scenes_match_the_cpu_mirror() {
     let dir = spd_dir();
     if !dir.is_dir() {
-        println!("note: {} is absent: no SPD scenes to validate", dir.display());
+        println!(
+            "note: {} is absent: no SPD scenes to validate",
+            dir.display()
+        );
         return;
     }
     let Some(g) = common::gpu() else { return };
@@ -50,7 +53,11 @@ fn spd_scenes_match_the_cpu_mirror() {
                     .lines()
                     .map(|l| {
                         let f: Vec<&str> = l.split_whitespace().collect();
-                        if f.len() == 9 && f[0] == "f" && f[7].parse::<f64>() == Ok(0.0) && f[8].parse::<f64>() == Ok(0.0) {
+                        if f.len() == 9
+                            && f[0] == "f"
+                            && f[7].parse::<f64>() == Ok(0.0)
+                            && f[8].parse::<f64>() == Ok(0.0)
+                        {
                             format!("{} 1\n", f[..8].join(" "))
                         } else {
                             format!("{l}\n")
@@ -80,7 +87,11 @@ fn spd_scenes_match_the_cpu_mirror() {
         if !c.passed() {
             let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}-diff.png"));
             c.diff_image().save(&out).unwrap();
-            failures.push(format!("{name}: {} (difference image {})", c.failures.join("; "), out.display()));
+            failures.push(format!(
+                "{name}: {} (difference image {})",
+                c.failures.join("; "),
+                out.display()
+            ));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));

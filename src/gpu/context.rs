@@ -196,7 +196,9 @@ impl Instance {
             .any(|e| e.extension_name_as_c_str() == Ok(ash::ext::debug_utils::NAME));
         let validation = validation_requested() && has_layer;
         if validation_requested() && !has_layer {
-            eprintln!("note: WHITTED_VALIDATION=1 but VK_LAYER_KHRONOS_validation is not installed");
+            eprintln!(
+                "note: WHITTED_VALIDATION=1 but VK_LAYER_KHRONOS_validation is not installed"
+            );
         }
         let app = vk::ApplicationInfo::default()
             .application_name(c"whitted")
@@ -316,9 +318,9 @@ impl Instance {
         let subgroup_ok = subgroup
             .supported_stages
             .contains(vk::ShaderStageFlags::COMPUTE)
-            && subgroup.supported_operations.contains(
-                vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC,
-            );
+            && subgroup
+                .supported_operations
+                .contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC);
         let unusable = if api < vk::API_VERSION_1_1 {
             Some(format!("supports only Vulkan {}", version_string(api)))
         } else if family.is_none() {
@@ -415,10 +417,7 @@ pub fn choose(
             count: devices.len(),
         })?;
         if let Some(why) = &d.unusable {
-            return Err(GpuError::Unusable(format!(
-                "device {i} ({}) {why}",
-                d.name
-            )));
+            return Err(GpuError::Unusable(format!("device {i} ({}) {why}", d.name)));
         }
         return Ok(i);
     }
@@ -474,8 +473,8 @@ impl Context {
             .queue_priorities(&prio)];
         let dinfo = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);
         // SAFETY: `pd` belongs to `instance`; `dinfo` points at live locals.
-        let device = unsafe { instance.instance.create_device(pd, &dinfo, None) }
-            .vk("vkCreateDevice")?;
+        let device =
+            unsafe { instance.instance.create_device(pd, &dinfo, None) }.vk("vkCreateDevice")?;
         // SAFETY: the queue family and index were requested above.
         let queue = unsafe { device.get_device_queue(info.queue_family, 0) };
         let allocator = Allocator::new(&AllocatorCreateDesc {

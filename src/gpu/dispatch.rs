@@ -153,25 +153,14 @@ impl Commands {
                 &[],
             );
             if !push.is_empty() {
-                d.cmd_push_constants(
-                    cmd,
-                    kernel.layout,
-                    vk::ShaderStageFlags::COMPUTE,
-                    0,
-                    push,
-                );
+                d.cmd_push_constants(cmd, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
             }
             if timed {
                 d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, self.queries, 0);
             }
             d.cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
             if timed {
-                d.cmd_write_timestamp(
-                    cmd,
-                    vk::PipelineStageFlags::BOTTOM_OF_PIPE,
-                    self.queries,
-                    1,
-                );
+                d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.queries, 1);
             }
             let b = [vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::SHADER_WRITE)
@@ -263,7 +252,12 @@ mod tests {
 
     #[test]
     fn tiles_cover_the_lattice_once() {
-        for &(lw, lh, t, spp) in &[(1, 1, 64, 1), (65, 33, 16, 1), (640, 480, 256, 64), (7, 300, 5, 3)] {
+        for &(lw, lh, t, spp) in &[
+            (1, 1, 64, 1),
+            (65, 33, 16, 1),
+            (640, 480, 256, 64),
+            (7, 300, 5, 3),
+        ] {
             let ts = tiles(lw, lh, t, spp, 1 << 16);
             let mut seen = vec![0u8; (lw * lh) as usize];
             for tl in &ts {

@@ -71,8 +71,7 @@ impl Buffer {
         let a = me.allocation.as_ref().unwrap();
         // SAFETY: the allocation satisfies the buffer's requirements and is
         // bound once.
-        unsafe { d.bind_buffer_memory(buffer, a.memory(), a.offset()) }
-            .vk("vkBindBufferMemory")?;
+        unsafe { d.bind_buffer_memory(buffer, a.memory(), a.offset()) }.vk("vkBindBufferMemory")?;
         Ok(me)
     }
 

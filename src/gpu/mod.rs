@@ -144,9 +144,16 @@ struct SceneBuffers {
 
 impl SceneBuffers {
     fn bindings(&self) -> Vec<(u32, &Buffer)> {
-        self.bufs.iter().enumerate().map(|(i, b)| (i as u32, b)).collect()
+        self.bufs
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, b))
+            .collect()
     }
 }
+
+/// Kernels by (name, specialization constants 0..=2).
+type KernelCache = Mutex<HashMap<(&'static str, [u32; 3]), Arc<Kernel>>>;
 
 /// An open device with its kernels, reusable across renders and probes.
 pub struct Gpu {
@@ -154,7 +161,7 @@ pub struct Gpu {
     /// need external synchronisation.
     busy: Mutex<()>,
     // Kernels hold Arc<Context>; the context goes when the last of them does.
-    kernels: Mutex<HashMap<(&'static str, [u32; 3]), Arc<Kernel>>>,
+    kernels: KernelCache,
     ctx: Arc<Context>,
 }
 
@@ -204,11 +211,26 @@ impl Gpu {
         let i = &self.ctx.info;
         let arrays: [(&str, u64); 8] = [
             ("globals", std::mem::size_of_val(&packed.globals) as u64),
-            ("prims", std::mem::size_of_val(packed.prims.as_slice()) as u64),
-            ("extra", std::mem::size_of_val(packed.extra.as_slice()) as u64),
-            ("materials", std::mem::size_of_val(packed.materials.as_slice()) as u64),
-            ("lights", std::mem::size_of_val(packed.lights.as_slice()) as u64),
-            ("cell_start", std::mem::size_of_val(packed.cell_start.as_slice()) as u64),
+            (
+                "prims",
+                std::mem::size_of_val(packed.prims.as_slice()) as u64,
+            ),
+            (
+                "extra",
+                std::mem::size_of_val(packed.extra.as_slice()) as u64,
+            ),
+            (
+                "materials",
+                std::mem::size_of_val(packed.materials.as_slice()) as u64,
+            ),
+            (
+                "lights",
+                std::mem::size_of_val(packed.lights.as_slice()) as u64,
+            ),
+            (
+                "cell_start",
+                std::mem::size_of_val(packed.cell_start.as_slice()) as u64,
+            ),
             ("refs", std::mem::size_of_val(packed.refs.as_slice()) as u64),
             ("output samples", out_bytes),
         ];
@@ -323,7 +345,11 @@ impl Gpu {
             name,
             spirv,
             &[0, 1, 2, 3, 4, 5, 6, 7, 8],
-            &[(0, opts.workgroup[0]), (1, opts.workgroup[1]), (2, g.trace[1])],
+            &[
+                (0, opts.workgroup[0]),
+                (1, opts.workgroup[1]),
+                (2, g.trace[1]),
+            ],
         )?;
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed)?;
@@ -334,12 +360,22 @@ impl Gpu {
         binds.push((8, &counters));
         kernel.bind(&binds)?;
 
-        if !kernel.warmed.swap(true, std::sync::atomic::Ordering::SeqCst) {
+        if !kernel
+            .warmed
+            .swap(true, std::sync::atomic::Ordering::SeqCst)
+        {
             // An empty tile: every invocation is out of range, nothing is
             // traced or counted, but the driver compiles the pipeline now
             // rather than inside the first timed tile.
             cmds.run_once(|d, cmd| {
-                cmds.record_dispatch(d, cmd, &kernel, bytemuck::bytes_of(&[0u32; 4]), [1, 1, 1], Some(&counters))
+                cmds.record_dispatch(
+                    d,
+                    cmd,
+                    &kernel,
+                    bytemuck::bytes_of(&[0u32; 4]),
+                    [1, 1, 1],
+                    Some(&counters),
+                )
             })?;
         }
         let spp = if corners { 1 } else { g.image[2] };
@@ -440,7 +476,14 @@ impl Gpu {
         }
         let push: [u32; 4] = [mode as u32, count, 0, 0];
         cmds.run_once(|d, cmd| {
-            cmds.record_dispatch(d, cmd, &kernel, bytemuck::bytes_of(&push), [groups, 1, 1], None)
+            cmds.record_dispatch(
+                d,
+                cmd,
+                &kernel,
+                bytemuck::bytes_of(&push),
+                [groups, 1, 1],
+                None,
+            )
         })?;
         Ok(output
             .read(out_len)?

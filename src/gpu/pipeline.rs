@@ -133,11 +133,10 @@ impl Kernel {
             let r = d.create_compute_pipelines(cache.handle, &ci, None);
             d.destroy_shader_module(module, None);
             cache.save();
-            k.pipeline = r
-                .map_err(|(_, result)| GpuError::Vulkan {
-                    call: "vkCreateComputePipelines",
-                    result,
-                })?[0];
+            k.pipeline = r.map_err(|(_, result)| GpuError::Vulkan {
+                call: "vkCreateComputePipelines",
+                result,
+            })?[0];
         }
         Ok(k)
     }

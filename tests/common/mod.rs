@@ -26,12 +26,18 @@ pub fn gpu() -> Option<&'static Gpu> {
                     "GPU tests on {} ({}), validation layer {}",
                     g.info().name,
                     g.info().kind.name(),
-                    if g.validation() { "on" } else { "not installed" }
+                    if g.validation() {
+                        "on"
+                    } else {
+                        "not installed"
+                    }
                 );
                 Some(g)
             }
             Err(e @ GpuError::NoDevice(_)) if !require_gpu() => {
-                eprintln!("note: skipping GPU tests: {e} (set WHITTED_REQUIRE_GPU=1 to fail instead)");
+                eprintln!(
+                    "note: skipping GPU tests: {e} (set WHITTED_REQUIRE_GPU=1 to fail instead)"
+                );
                 None
             }
             Err(e) => panic!("cannot open a Vulkan device: {e}"),
@@ -59,7 +65,8 @@ pub fn load(path: &Path, settings: &Settings) -> Packed {
 }
 
 pub fn parse(text: &str, settings: &Settings) -> Packed {
-    let s = whitted::scene::parse_str(text, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let s =
+        whitted::scene::parse_str(text, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"));
     pack::pack(&s, settings)
 }
 
