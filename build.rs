@@ -4,7 +4,7 @@
 include!("src/constants.rs");
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn constants_glsl() -> String {
     let src = include_str!("src/constants.rs");
@@ -68,9 +68,143 @@ fn const_f32(name: &str) -> f32 {
     }
 }
 
+/// Resolves `#include "x.glsl"` against `shaders/` then `$OUT_DIR` (the
+/// generated `constants.glsl`).
+struct Includer {
+    dirs: Vec<PathBuf>,
+    /// Every file read, for rerun-if-changed.
+    seen: Vec<PathBuf>,
+}
+
+impl glslang::include::IncludeHandler for Includer {
+    fn include(
+        &mut self,
+        _ty: glslang::include::IncludeType,
+        header: &str,
+        _includer: &str,
+        _depth: usize,
+    ) -> Option<glslang::include::IncludeResult> {
+        for d in &self.dirs {
+            let path = d.join(header);
+            if let Ok(data) = std::fs::read_to_string(&path) {
+                self.seen.push(path);
+                return Some(glslang::include::IncludeResult {
+                    name: header.to_string(),
+                    data,
+                });
+            }
+        }
+        None
+    }
+}
+
+/// glslang names the top-level file "0" in its log; name it properly and
+/// prefix included files with `shaders/`, so errors read `file:line: ...`.
+fn tidy_log(log: &str, file: &str) -> String {
+    let mut out = String::new();
+    for line in log.lines() {
+        let line = line
+            .replacen("ERROR: 0:", &format!("ERROR: {file}:"), 1)
+            .replacen("WARNING: 0:", &format!("WARNING: {file}:"), 1);
+        let line = if let Some(rest) = line.strip_prefix("ERROR: ") {
+            if !rest.starts_with("shaders/") && rest.contains(".glsl:") {
+                format!("ERROR: shaders/{rest}")
+            } else {
+                line.clone()
+            }
+        } else {
+            line.clone()
+        };
+        out.push_str(&line);
+        out.push('\n');
+    }
+    out
+}
+
+/// Compiles one compute shader to SPIR-V 1.3 for Vulkan 1.1; panics (failing
+/// the build) with glslang's log on any error.
+fn compile(path: &Path, out: &Path) -> Vec<PathBuf> {
+    use glslang::*;
+    let file = format!("shaders/{}", path.file_name().unwrap().to_string_lossy());
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{file}: {e}"));
+    let compiler = Compiler::acquire().expect("glslang: cannot initialize the compiler");
+    let source = ShaderSource::from(text);
+    let options = CompilerOptions {
+        source_language: SourceLanguage::GLSL,
+        target: Target::Vulkan {
+            version: VulkanVersion::Vulkan1_1,
+            spirv_version: SpirvVersion::SPIRV1_3,
+        },
+        version_profile: None,
+        messages: ShaderMessage::DEFAULT
+            | ShaderMessage::VULKAN_RULES
+            | ShaderMessage::SPV_RULES
+            | ShaderMessage::CASCADING_ERRORS,
+    };
+    let mut includer = Includer {
+        dirs: vec![PathBuf::from("shaders"), out.to_path_buf()],
+        seen: Vec::new(),
+    };
+    let fail = |what: &str, e: glslang::error::GlslangError| -> ! {
+        let msg = match &e {
+            glslang::error::GlslangError::ParseError(l)
+            | glslang::error::GlslangError::PreprocessError(l)
+            | glslang::error::GlslangError::LinkError(l) => tidy_log(&l.log, &file),
+            e => format!("{e}"),
+        };
+        panic!("\n{file}: GLSL {what} failed:\n{msg}");
+    };
+    let words = {
+        let input = ShaderInput::new(
+            &source,
+            ShaderStage::Compute,
+            &options,
+            None::<&[(&str, Option<&str>)]>,
+            Some(&mut includer),
+        )
+        .unwrap_or_else(|e| fail("setup", e));
+        let shader = Shader::new(compiler, input)
+            .parse()
+            .unwrap_or_else(|e| fail("compilation", e));
+        let mut program = compiler.create_program();
+        program.add_shader(&shader);
+        program
+            .compile(ShaderStage::Compute)
+            .unwrap_or_else(|e| fail("link", e))
+    };
+    let stem = path.file_stem().unwrap().to_string_lossy();
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    std::fs::write(out.join(format!("{stem}.spv")), bytes).unwrap();
+    includer.seen
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=src/constants.rs");
     println!("cargo:rerun-if-changed=shaders");
     let out = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     std::fs::write(out.join("constants.glsl"), constants_glsl()).unwrap();
+
+    let mut sources: Vec<PathBuf> = std::fs::read_dir("shaders")
+        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    sources.sort();
+    for p in &sources {
+        println!("cargo:rerun-if-changed={}", p.display());
+    }
+    let mut compiled = Vec::new();
+    for p in sources
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "comp"))
+    {
+        compile(p, &out);
+        compiled.push(p.file_stem().unwrap().to_string_lossy().into_owned());
+    }
+    // The kernels src/gpu/shaders.rs embeds: an empty file stands for one
+    // not written yet, so the crate builds and the GPU backend says which
+    // shader is missing at run time.
+    for name in ["render", "probe", "smoke"] {
+        if !compiled.iter().any(|c| c == name) {
+            std::fs::write(out.join(format!("{name}.spv")), []).unwrap();
+        }
+    }
 }

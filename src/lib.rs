@@ -9,6 +9,8 @@ pub mod constants;
 pub mod cpu;
 pub mod export;
 pub mod gen;
+pub mod gpu;
+pub mod metrics;
 pub mod output;
 pub mod pack;
 pub mod scene;

@@ -5,8 +5,11 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
+use whitted::cpu::Frame;
+use whitted::gpu::{self, Gpu, GpuError, GpuOptions};
+use whitted::metrics::{self, Tolerance};
 use whitted::output::{self, Encoding};
-use whitted::pack::{self, Sampling, Settings};
+use whitted::pack::{self, Packed, Sampling, Settings};
 use whitted::{cpu, scene};
 
 /// A recursive (Whitted-style) ray tracer: a Vulkan compute shader with a
@@ -27,6 +30,23 @@ enum Command {
     ///
     /// Example: whitted render scenes/showcase.toml -o showcase.png --spp 4
     Render(RenderArgs),
+    /// List the Vulkan devices and say which one each backend picks.
+    ///
+    /// For each device: its index (for --device), name, type, driver,
+    /// maxStorageBufferRange (the largest array a scene may have),
+    /// maxComputeWorkGroupInvocations, subgroup size and whether it has
+    /// timestamps (for device timings).
+    Devices(DevicesArgs),
+    /// Render a scene on both backends (CPU mirror and GPU) and compare.
+    ///
+    /// Prints max and mean absolute error, RMSE, PSNR, mean FLIP (on the
+    /// 8-bit sRGB images), the fraction of pixels over the per-pixel
+    /// tolerance, and each ray count on both sides. Exits 1 when the
+    /// images or ray counts are over tolerance (see docs/gpu.md), 0 when
+    /// they agree. Uses the device --backend gpu would (lavapipe too).
+    ///
+    /// Example: whitted validate scenes/showcase.toml --width 160 --height 120 --diff diff.png
+    Validate(ValidateArgs),
     /// Write a procedural scene (for benchmarks) as NFF.
     ///
     /// Example: whitted generate --count 100000 -o spheres-100k.nff
@@ -89,9 +109,6 @@ struct RenderOpts {
     /// Image height in pixels (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     height: Option<u32>,
-    /// Where to render.
-    #[arg(long, value_enum, default_value_t = Backend::Auto)]
-    backend: Backend,
     /// Generations of reflection/refraction (0 = local model only).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=whitted::constants::MAX_DEPTH_LIMIT as i64))]
     max_depth: u32,
@@ -114,6 +131,22 @@ struct RenderOpts {
     threads: Option<u32>,
 }
 
+#[derive(Args, Clone)]
+struct GpuArgs {
+    /// Vulkan device index (see `whitted devices`); default: the best one
+    /// (discrete > integrated > virtual > CPU).
+    #[arg(long, value_name = "N")]
+    device: Option<usize>,
+    /// Edge of a GPU dispatch tile in lattice samples: one submission per
+    /// tile, so none runs long.
+    #[arg(long, value_name = "N", default_value_t = gpu::DEFAULT_TILE,
+          value_parser = clap::value_parser!(u32).range(1..=16384))]
+    tile: u32,
+    /// GPU workgroup shape (specialization constants of the shader).
+    #[arg(long, value_name = "WxH", default_value = "8x8", value_parser = parse_workgroup)]
+    workgroup: [u32; 2],
+}
+
 #[derive(Args)]
 struct RenderArgs {
     /// Scene file: native TOML (see docs/scene-format.md) or NFF (.nff).
@@ -124,6 +157,14 @@ struct RenderArgs {
     output: Option<PathBuf>,
     #[command(flatten)]
     opts: RenderOpts,
+    /// Where to render: `auto` uses a real GPU (discrete, integrated or
+    /// virtual) when there is one and otherwise the CPU mirror, saying why
+    /// on stderr; `gpu` uses the chosen Vulkan device, CPU ones (lavapipe)
+    /// included, and fails when there is none; `cpu` the CPU mirror.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
+    #[command(flatten)]
+    gpu: GpuArgs,
     /// PNG encoding: sRGB, or the clamped linear values round(255·v).
     #[arg(long, value_enum, default_value_t = Encoding::Srgb)]
     encoding: Encoding,
@@ -133,6 +174,51 @@ struct RenderArgs {
     /// No progress bar and no notes on stderr.
     #[arg(short, long)]
     quiet: bool,
+}
+
+#[derive(Args)]
+struct DevicesArgs {
+    /// Print the list as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct ValidateArgs {
+    /// Scene file: native TOML (see docs/scene-format.md) or NFF (.nff).
+    scene: PathBuf,
+    #[command(flatten)]
+    opts: RenderOpts,
+    #[command(flatten)]
+    gpu: GpuArgs,
+    /// Write an image of the per-pixel error (PNG): black where the
+    /// backends agree; the per-pixel tolerance is the middle of the colour
+    /// scale, brighter is over it.
+    #[arg(long, value_name = "DIFF.png")]
+    diff: Option<PathBuf>,
+    /// Write the comparison as JSON.
+    #[arg(long, value_name = "FILE.json")]
+    json: Option<PathBuf>,
+    /// Only the verdict line.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn parse_workgroup(s: &str) -> Result<[u32; 2], String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let bad = || format!("expected WxH such as 8x8 (each 1 to 1024), got '{s}'");
+    if parts.len() != 2 {
+        return Err(bad());
+    }
+    let mut out = [0u32; 2];
+    for (i, p) in parts.iter().enumerate() {
+        out[i] = p
+            .parse()
+            .ok()
+            .filter(|n| (1..=1024).contains(n))
+            .ok_or_else(bad)?;
+    }
+    Ok(out)
 }
 
 fn parse_weight(s: &str) -> Result<f32, String> {
@@ -221,32 +307,32 @@ fn render(a: RenderArgs) -> Result<()> {
     drop(scene);
     let t_build = t_build0.elapsed().as_secs_f64();
 
-    let (backend, device) = match a.opts.backend {
-        Backend::Gpu => bail!(UserError(anyhow!(
-            "--backend gpu: the Vulkan backend is not available in this build"
-        ))),
-        Backend::Auto | Backend::Cpu => ("cpu", "CPU mirror".to_string()),
-    };
-    let pool = {
-        let mut b = rayon::ThreadPoolBuilder::new();
-        if let Some(n) = a.opts.threads {
-            b = b.num_threads(n as usize);
-        }
-        b.build().context("cannot start worker threads")?
-    };
-    let bar = progress_bar(a.quiet);
-    let started = Instant::now();
     let quiet = a.quiet;
-    let frame = pool.install(|| {
-        cpu::render(&packed, &|done, total| {
-            if !quiet && bar.is_hidden() && started.elapsed().as_secs_f64() > 1.0 {
-                bar.set_length(total);
-                bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-            }
+    let bar = progress_bar(quiet);
+    let started = Instant::now();
+    let progress = |done: u64, total: u64| {
+        if !quiet && bar.is_hidden() && started.elapsed().as_secs_f64() > 1.0 {
             bar.set_length(total);
-            bar.set_position(done);
-        })
-    });
+            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        }
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let (backend, device, frame) = match choose_backend(a.backend, &a.gpu)? {
+        Chosen::Gpu(g) => {
+            let frame = g
+                .render(&packed, &gpu_options(&a.gpu), &progress)
+                .map_err(gpu_err)?;
+            ("gpu", g.info().name.clone(), frame)
+        }
+        Chosen::Cpu(why) => {
+            if let (Some(why), false) = (why, quiet) {
+                eprintln!("note: rendering on the CPU mirror: {why}");
+            }
+            let frame = render_cpu(&packed, a.opts.threads, &progress)?;
+            ("cpu", "CPU mirror".to_string(), frame)
+        }
+    };
     bar.finish_and_clear();
     output::write(&frame, &out, a.encoding).map_err(user)?;
     let total = t_start.elapsed().as_secs_f64();
@@ -262,6 +348,7 @@ fn render(a: RenderArgs) -> Result<()> {
                 "load": t_load,
                 "build": t_build,
                 "render": frame.seconds,
+                "gpu": frame.device_seconds,
                 "total": total,
             },
             "grid": {
@@ -318,6 +405,271 @@ fn export(a: ExportArgs) -> Result<()> {
     write_atomic(&a.output, text.as_bytes()).map_err(user)
 }
 
+fn gpu_options(g: &GpuArgs) -> GpuOptions {
+    GpuOptions {
+        device: g.device,
+        real_gpu_only: false,
+        tile: g.tile,
+        workgroup: g.workgroup,
+    }
+}
+
+/// A GPU error: the user's to fix (exit 2) or internal (exit 3).
+fn gpu_err(e: GpuError) -> anyhow::Error {
+    if e.is_user_error() {
+        user(anyhow!(e))
+    } else {
+        anyhow!(e)
+    }
+}
+
+enum Chosen {
+    Gpu(Gpu),
+    /// The CPU mirror, and why when `auto` passed over a Vulkan device.
+    Cpu(Option<String>),
+}
+
+/// `auto`: a real GPU, or `--device N` of any kind; otherwise the CPU
+/// mirror with the reason. `gpu`: the chosen device or an error (exit 2).
+fn choose_backend(b: Backend, g: &GpuArgs) -> Result<Chosen> {
+    match b {
+        Backend::Cpu => Ok(Chosen::Cpu(None)),
+        Backend::Gpu => Ok(Chosen::Gpu(
+            Gpu::new(&gpu_options(g)).map_err(|e| user(anyhow!("--backend gpu: {e}")))?,
+        )),
+        Backend::Auto => {
+            let devices = match gpu::devices() {
+                Ok(d) => d,
+                Err(e) => return Ok(Chosen::Cpu(Some(e.to_string()))),
+            };
+            let pick = match g.device {
+                Some(i) => gpu::choose(&devices, Some(i), false),
+                None => gpu::choose(&devices, None, true),
+            };
+            match pick {
+                Ok(i) => {
+                    let opts = GpuOptions {
+                        device: Some(i),
+                        ..gpu_options(g)
+                    };
+                    match Gpu::new(&opts) {
+                        Ok(gpu) => Ok(Chosen::Gpu(gpu)),
+                        Err(e) if g.device.is_some() => Err(gpu_err(e)),
+                        Err(e) => Ok(Chosen::Cpu(Some(format!(
+                            "{} could not be opened ({e})",
+                            devices[i].name
+                        )))),
+                    }
+                }
+                Err(e @ GpuError::BadIndex { .. }) | Err(e @ GpuError::Unusable(_))
+                    if g.device.is_some() =>
+                {
+                    Err(gpu_err(e))
+                }
+                Err(_) => Ok(Chosen::Cpu(Some(auto_reason(&devices)))),
+            }
+        }
+    }
+}
+
+/// Why `auto` passes over every Vulkan device.
+fn auto_reason(devices: &[gpu::DeviceInfo]) -> String {
+    if devices.is_empty() {
+        return "no Vulkan device".into();
+    }
+    let cpu: Vec<&gpu::DeviceInfo> = devices
+        .iter()
+        .filter(|d| d.kind == gpu::DeviceKind::Cpu)
+        .collect();
+    if let Some(d) = cpu.first() {
+        return format!(
+            "the only Vulkan device is {} (a CPU device: lavapipe is for validation, \
+             about 3x slower than the mirror on divergent rays); --backend gpu uses it anyway",
+            d.name
+        );
+    }
+    format!(
+        "no usable GPU ({})",
+        devices
+            .iter()
+            .map(|d| format!(
+                "{}: {}",
+                d.name,
+                d.unusable.as_deref().unwrap_or("not a GPU")
+            ))
+            .collect::<Vec<_>>()
+            .join("; ")
+    )
+}
+
+fn render_cpu(
+    packed: &Packed,
+    threads: Option<u32>,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Frame> {
+    let pool = {
+        let mut b = rayon::ThreadPoolBuilder::new();
+        if let Some(n) = threads {
+            b = b.num_threads(n as usize);
+        }
+        b.build().context("cannot start worker threads")?
+    };
+    Ok(pool.install(|| cpu::render(packed, progress)))
+}
+
+fn devices(a: DevicesArgs) -> Result<()> {
+    let list = match gpu::devices() {
+        Ok(l) => l,
+        Err(e) => {
+            if a.json {
+                println!(
+                    "{}",
+                    serde_json::json!({ "devices": [], "error": e.to_string() })
+                );
+            } else {
+                println!("{e}");
+                println!("--backend auto renders on the CPU mirror; --backend gpu fails.");
+            }
+            return Ok(());
+        }
+    };
+    let gpu_pick = gpu::choose(&list, None, false).ok();
+    let auto_pick = gpu::choose(&list, None, true).ok();
+    if a.json {
+        let json = serde_json::json!({
+            "devices": list,
+            "gpu": gpu_pick,
+            "auto": auto_pick,
+        });
+        println!("{}", serde_json::to_string_pretty(&json)?);
+        return Ok(());
+    }
+    if list.is_empty() {
+        println!("no Vulkan device: the loader reports none");
+    }
+    for d in &list {
+        println!("{}: {}", d.index, d.name);
+        println!(
+            "    type: {}; driver: {}; Vulkan {}",
+            d.kind.name(),
+            d.driver,
+            d.api_version
+        );
+        println!(
+            "    maxStorageBufferRange: {} bytes ({:.0} MiB); maxComputeWorkGroupInvocations: {}; \
+             subgroup size: {}",
+            d.max_storage_buffer_range,
+            d.max_storage_buffer_range as f64 / 1048576.0,
+            d.max_compute_work_group_invocations,
+            d.subgroup_size
+        );
+        println!(
+            "    timestamps: {}",
+            if d.timestamps {
+                format!("yes ({} ns per tick)", d.timestamp_period_ns)
+            } else {
+                "no".into()
+            }
+        );
+        if let Some(why) = &d.unusable {
+            println!("    unusable: {why}");
+        }
+    }
+    match gpu_pick {
+        Some(i) => println!("--backend gpu: device {i} ({})", list[i].name),
+        None => println!("--backend gpu: no usable device (it fails)"),
+    }
+    match auto_pick {
+        Some(i) => println!("--backend auto: device {i} ({})", list[i].name),
+        None => println!("--backend auto: the CPU mirror ({})", auto_reason(&list)),
+    }
+    Ok(())
+}
+
+fn validate(a: ValidateArgs) -> Result<bool> {
+    let scene = scene::load(&a.scene).map_err(user)?;
+    let packed = pack::pack(&scene, &settings(&a.opts));
+    drop(scene);
+    let g = Gpu::new(&gpu_options(&a.gpu)).map_err(|e| user(anyhow!("validate: {e}")))?;
+    let gpu_frame = g
+        .render(&packed, &gpu_options(&a.gpu), &|_, _| {})
+        .map_err(gpu_err)?;
+    let cpu_frame = render_cpu(&packed, a.opts.threads, &|_, _| {})?;
+    let tol = Tolerance::default();
+    let c = metrics::compare(&cpu_frame, &gpu_frame, &tol);
+    if let Some(path) = &a.diff {
+        output::format_of(path).map_err(user)?;
+        let img = c.diff_image();
+        let mut bytes = Vec::new();
+        img.write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .context("cannot encode the difference image")?;
+        write_atomic(path, &bytes).map_err(user)?;
+    }
+    if let Some(path) = &a.json {
+        let json = serde_json::json!({
+            "scene": a.scene,
+            "device": g.info().name,
+            "comparison": c,
+            "passed": c.passed(),
+            "seconds": { "cpu": cpu_frame.seconds, "gpu_wall": gpu_frame.seconds, "gpu": gpu_frame.device_seconds },
+        });
+        write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes()).map_err(user)?;
+    }
+    if !a.quiet {
+        println!(
+            "{}: {}x{}, CPU mirror vs {}",
+            a.scene.display(),
+            c.width,
+            c.height,
+            g.info().name
+        );
+        println!("  max abs error    {:.3e}", c.max_abs);
+        println!("  mean abs error   {:.3e}", c.mean_abs);
+        println!("  RMSE             {:.3e}", c.rmse);
+        println!("  PSNR             {:.1} dB", c.psnr);
+        println!(
+            "  mean FLIP        {:.5} (8-bit sRGB; limit {})",
+            c.mean_flip, tol.mean_flip
+        );
+        println!(
+            "  pixels over {:e} {} of {} ({:.3}%; limit {:.3}%)",
+            tol.pixel,
+            c.pixels_over,
+            c.width as u64 * c.height as u64,
+            c.fraction_over * 100.0,
+            tol.fraction_over * 100.0
+        );
+        println!("  rays       {:>12} {:>12} {:>8}", "cpu", "gpu", "diff");
+        for r in &c.rays {
+            println!(
+                "  {:<10} {:>12} {:>12} {:>+8}",
+                r.kind,
+                r.reference,
+                r.test,
+                r.diff()
+            );
+        }
+        println!(
+            "  time       cpu {:.3} s, gpu {:.3} s{}",
+            cpu_frame.seconds,
+            gpu_frame.seconds,
+            gpu_frame
+                .device_seconds
+                .map(|s| format!(" (device {s:.3} s)"))
+                .unwrap_or_default()
+        );
+    }
+    if c.passed() {
+        println!("PASS: the GPU matches the CPU mirror within tolerance");
+    } else {
+        println!("FAIL: {}", c.failures.join("; "));
+    }
+    Ok(c.passed())
+}
+
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -342,6 +694,12 @@ fn main() -> ExitCode {
         Command::Render(a) => render(a),
         Command::Generate(a) => generate(a),
         Command::Export(a) => export(a),
+        Command::Devices(a) => devices(a),
+        Command::Validate(a) => match validate(a) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(1),
+            Err(e) => Err(e),
+        },
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

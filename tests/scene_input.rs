@@ -706,6 +706,13 @@ fn nff_ior_must_be_positive() {
 }
 
 #[test]
+fn nff_opaque_ior_zero_reads_as_one() {
+    // The SPD's generators write `T = 0, ior = 0` for opaque surfaces.
+    let s = nff_ok(&format!("{NFF_VIEW}f 1 1 1 0.5 0.5 3 0 0\ns 0 0 0 1\n"));
+    assert_eq!(s.materials[s.objects[0].material as usize].ior, 1.0);
+}
+
+#[test]
 fn nff_view_errors() {
     let e = nff_err("v\nfrom 0 0 5\nat 0 0 0\nup 0 0 1\nangle 40\n");
     assert_err(&e, 4, 4, "parallel to the view direction");

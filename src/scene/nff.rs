@@ -248,6 +248,13 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 let (shine, _) = p.num("f", "Shine")?;
                 let (transmittance, _) = p.num("f", "T")?;
                 let (ior, ior_tok) = p.num("f", "index of refraction")?;
+                // The SPD writes ior 0 for opaque surfaces, where it means
+                // nothing: read it as 1. A transparent one needs a real ior.
+                let ior = if transmittance == 0.0 && ior == 0.0 {
+                    1.0
+                } else {
+                    ior
+                };
                 p.check(ior_tok, validate::ior(ior))?;
                 let key = [c.x, c.y, c.z, kd, ks, shine, transmittance, ior].map(f64::to_bits);
                 current = *material_index.entry(key).or_insert_with(|| {

@@ -1,0 +1,271 @@
+// 3D-DDA (Amanatides & Woo) through the uniform voxel grid: twin of
+// src/trace/grid.rs.
+//
+// Closest hit keeps the best hit found so far across cells (a primitive's
+// hit may lie beyond the cell that referenced it) and stops once that hit
+// lies inside the current cell. Each primitive is tested once per ray: a
+// primitive whose cell range holds the previous cell was already tested
+// there and is skipped. (The Rust `Work` counters are not kept here; its
+// shadow cache is.)
+#ifndef WHITTED_GRID_GLSL
+#define WHITTED_GRID_GLSL
+
+#include "intersect.glsl"
+
+// Traversal state: the current cell and where the ray leaves it on each
+// axis.
+struct Dda {
+    ivec3 cell;
+    ivec3 step;
+    // Distance along the ray to the current cell's far boundary plane on
+    // each axis (INF for an axis the ray does not move along).
+    vec3 next;
+    float t_end; // where the ray segment inside the grid ends
+    // The axis of the last step (3: none yet) and the cell coordinate on
+    // that axis before it: the previous cell differs from the current one
+    // only there.
+    int prev_axis;
+    int prev_coord;
+    // The ray's origin and 1/direction, per axis.
+    vec3 o;
+    vec3 inv;
+};
+
+// Distance to the far boundary of cell dda.cell on axis, computed afresh
+// from the cell index (no error accumulates along the ray).
+float dda_boundary(Dda dda, int axis) {
+    int edge = dda.cell[axis] + (dda.step[axis] > 0 ? 1 : 0);
+    precise float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
+    precise float t = (plane - dda.o[axis]) * dda.inv[axis];
+    return t;
+}
+
+// Clips the ray to the grid; false when it misses the grid or the grid is empty.
+bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
+    if (g.grid_min.w == 0.0) {
+        return false;
+    }
+    vec3 o = ray.o;
+    vec3 d = ray.d;
+    vec3 inv = pre.inv_d;
+    float t0 = 0.0;
+    float t1 = tmax;
+    for (int i = 0; i < 3; i++) {
+        float lo = g.grid_min[i];
+        float hi = g.grid_max[i];
+        if (d[i] == 0.0) {
+            if (o[i] < lo || o[i] > hi) {
+                return false;
+            }
+            continue;
+        }
+        precise float ta = (lo - o[i]) * inv[i];
+        precise float tb = (hi - o[i]) * inv[i];
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+    }
+    if (t0 > t1) {
+        return false;
+    }
+    dda.cell = ivec3(0);
+    dda.step = ivec3(0);
+    dda.next = vec3(INF);
+    dda.t_end = t1;
+    dda.prev_axis = 3;
+    dda.prev_coord = -1;
+    dda.o = o;
+    dda.inv = inv;
+    for (int i = 0; i < 3; i++) {
+        int n = int(g.grid_dims[i]);
+        precise float p = o[i] + d[i] * t0;
+        precise float c = floor((p - g.grid_min[i]) / g.grid_cell[i]);
+        // Rust: NaN → 0, else a saturating `as i32`, then clamp(0, n − 1);
+        // the same without ever converting an out-of-range float.
+        int ci;
+        if (isnan(c) || c <= 0.0) {
+            ci = 0;
+        } else if (c >= float(n - 1)) {
+            ci = n - 1;
+        } else {
+            ci = int(c);
+        }
+        dda.cell[i] = ci;
+        dda.step[i] = d[i] > 0.0 ? 1 : (d[i] < 0.0 ? -1 : 0);
+        if (dda.step[i] != 0) {
+            dda.next[i] = dda_boundary(dda, i);
+        }
+    }
+    return true;
+}
+
+// Where the ray leaves the current cell; the axis it crosses in `axis`.
+float dda_exit(Dda dda, out int axis) {
+    vec3 n = dda.next;
+    if (n.x <= n.y && n.x <= n.z) {
+        axis = 0;
+        return n.x;
+    } else if (n.y <= n.z) {
+        axis = 1;
+        return n.y;
+    }
+    axis = 2;
+    return n.z;
+}
+
+// Moves to the next cell along axis; false when the ray leaves the grid.
+bool dda_advance(inout Dda dda, int axis) {
+    dda.prev_axis = axis;
+    dda.prev_coord = dda.cell[axis];
+    dda.cell[axis] += dda.step[axis];
+    dda.next[axis] = dda_boundary(dda, axis);
+    return dda.cell[axis] >= 0 && dda.cell[axis] < int(g.grid_dims[axis]);
+}
+
+// True when the primitive was already tested in the previous cell. It is
+// listed in the current cell, so its cell range holds the current cell; the
+// previous cell differs only on the last step's axis, so checking that one
+// coordinate suffices.
+bool seen_before(Prim prim, Dda dda) {
+    if (dda.prev_axis > 2) {
+        return false;
+    }
+    uint shift = 10u * uint(dda.prev_axis);
+    int lo = int((prim.cell_lo >> shift) & 1023u);
+    int hi = int((prim.cell_hi >> shift) & 1023u);
+    return dda.prev_coord >= lo && dda.prev_coord <= hi;
+}
+
+// Shadow cache (Rust: Work::shadow_cache): per light, 1 + the index of the
+// opaque primitive that last blocked a feeler to it (0: none). It never
+// changes a result; reset per invocation (shadow_cache_reset).
+uint shadow_cache[SHADOW_CACHE_LIGHTS];
+
+void shadow_cache_reset() {
+    for (uint i = 0u; i < SHADOW_CACHE_LIGHTS; i++) {
+        shadow_cache[i] = 0u;
+    }
+}
+
+uint cell_index(ivec3 c) {
+    uvec4 d = g.grid_dims;
+    return uint(c.x) + d.x * (uint(c.y) + d.y * uint(c.z));
+}
+
+// A ray visits at most dims.x + dims.y + dims.z − 2 cells (each step moves
+// one axis one cell, monotonically); the loops stop there at the latest so
+// that a NaN ray cannot hang the device. Never reached by a finite ray.
+uint dda_max_cells() {
+    return g.grid_dims.x + g.grid_dims.y + g.grid_dims.z;
+}
+
+// The nearest hit along the ray with t < tmax: the hit and the primitive index.
+// (Loops end with `break`, never `return`: returns from inside nested
+// loops miscompiled on llvmpipe 22.3 when a SIMD group's lanes diverge.)
+bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_prim) {
+    float best_t = tmax;
+    bool found = false;
+    best_prim = 0xFFFFFFFFu;
+    best = Hit(0.0, 0.0, 0.0);
+    for (uint i = g.counts.x; i < g.counts.y; i++) {
+        Hit h;
+        if (intersect(prims[i], ray, pre, best_t, h)) {
+            best_t = h.t;
+            best = h;
+            best_prim = i;
+            found = true;
+        }
+    }
+    Dda dda;
+    if (!dda_setup(ray, pre, best_t, dda)) {
+        return found;
+    }
+    uint max_cells = dda_max_cells();
+    for (uint visited = 0u; visited < max_cells; visited++) {
+        int axis;
+        float t_exit = dda_exit(dda, axis);
+        uint ci = cell_index(dda.cell);
+        uint start = cell_start[ci];
+        uint end = cell_start[ci + 1u];
+        for (uint k = start; k < end; k++) {
+            uint r = refs[k];
+            Prim prim = prims[r];
+            if (seen_before(prim, dda)) {
+                continue;
+            }
+            Hit h;
+            if (intersect(prim, ray, pre, best_t, h)) {
+                best_t = h.t;
+                best = h;
+                best_prim = r;
+                found = true;
+            }
+        }
+        if (best_t <= t_exit || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
+            break;
+        }
+    }
+    return found;
+}
+
+// Light reaching the end of a shadow feeler of length dist: every primitive
+// crossing it multiplies by its k_t (opaque ones give zero). Shadow feelers
+// are not refracted. `light` indexes the shadow cache.
+vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
+    uint cached = light < SHADOW_CACHE_LIGHTS ? shadow_cache[light] : 0u;
+    if (cached != 0u) {
+        Hit hc;
+        if (intersect(prims[cached - 1u], ray, pre, dist, hc)) {
+            return vec3(0.0);
+        }
+    }
+    precise vec3 trans = vec3(1.0);
+    bool blocked = false;
+    for (uint i = g.counts.x; i < g.counts.y && !blocked; i++) {
+        Prim prim = prims[i];
+        Hit h;
+        if (intersect(prim, ray, pre, dist, h)) {
+            vec3 kt = materials[prim_material(prim)].kt.xyz;
+            trans = trans * kt;
+            if (max_elem(kt) <= 0.0 && light < SHADOW_CACHE_LIGHTS) {
+                shadow_cache[light] = i + 1u;
+            }
+            blocked = max_elem(trans) <= 0.0;
+        }
+    }
+    Dda dda;
+    if (!blocked && dda_setup(ray, pre, dist, dda)) {
+        uint max_cells = dda_max_cells();
+        for (uint visited = 0u; visited < max_cells; visited++) {
+            int axis;
+            float t_exit = dda_exit(dda, axis);
+            uint ci = cell_index(dda.cell);
+            uint start = cell_start[ci];
+            uint end = cell_start[ci + 1u];
+            for (uint k = start; k < end; k++) {
+                uint r = refs[k];
+                Prim prim = prims[r];
+                if (seen_before(prim, dda)) {
+                    continue;
+                }
+                Hit h;
+                if (intersect(prim, ray, pre, dist, h)) {
+                    vec3 kt = materials[prim_material(prim)].kt.xyz;
+                    trans = trans * kt;
+                    if (max_elem(kt) <= 0.0 && light < SHADOW_CACHE_LIGHTS) {
+                        shadow_cache[light] = r + 1u;
+                    }
+                    if (max_elem(trans) <= 0.0) {
+                        blocked = true;
+                        break;
+                    }
+                }
+            }
+            if (blocked || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
+                break;
+            }
+        }
+    }
+    return blocked ? vec3(0.0) : trans;
+}
+
+#endif

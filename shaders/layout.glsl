@@ -1,0 +1,90 @@
+// The packed scene: std430 structs and the buffers that hold them.
+// Twin of src/pack/layout.rs (the only other layout definition): every
+// member is a vec4/uvec4 or a uint quadruple, so std430 adds no padding.
+#ifndef WHITTED_LAYOUT_GLSL
+#define WHITTED_LAYOUT_GLSL
+
+#include "constants.glsl"
+
+// Scene-wide values: camera, grid, counts, render settings.
+struct Globals {
+    vec4 cam_right;   // xyz: right × half-width of the image plane at distance 1
+    vec4 cam_up;      // xyz: up × half-height
+    vec4 cam_forward; // xyz: unit viewing direction
+    vec4 background;  // rgb
+    vec4 ambient;     // rgb I_a
+    vec4 grid_min;    // xyz: lower corner; w: 1 when the grid holds any primitive
+    vec4 grid_max;    // xyz: upper corner
+    vec4 grid_cell;   // xyz: cell size
+    uvec4 grid_dims;  // cells per axis; w: total cells
+    uvec4 counts;     // x: grid prims, y: all prims, z: lights, w: materials
+    uvec4 image;      // x: width, y: height, z: samples per pixel, w: sampling mode
+    uvec4 trace;      // x: max depth, y: feature bits, z, w: strata in x, y
+    vec4 params;      // x: min weight, y: surface offset
+};
+
+// One primitive, 64 bytes; kind_mat = kind (low 4 bits) | material << 4.
+// See src/pack/layout.rs for what a, b, c and data hold per kind.
+struct Prim {
+    uint kind_mat;
+    uint data;
+    uint cell_lo;
+    uint cell_hi;
+    vec4 a;
+    vec4 b;
+    vec4 c;
+};
+
+uint prim_kind(Prim p) { return p.kind_mat & 15u; }
+uint prim_material(Prim p) { return p.kind_mat >> 4; }
+
+// Colours premultiplied: ka = k_a·colour, kd = k_d·colour.
+struct Material {
+    vec4 ka;
+    vec4 kd;
+    vec4 ks;     // x: k_sr, y: n_r, z: k_st, w: n_t
+    vec4 kr;     // rgb: k_r; w: index of refraction
+    vec4 kt;     // rgb: k_t
+    vec4 absorb; // rgb: absorption per unit length
+};
+
+struct Light {
+    vec4 pos;     // xyz: camera-relative position
+    vec4 color;   // rgb: I_i
+    vec4 falloff; // c1, c2, c3 of f(d) = min(1, 1/(c1 + c2 d + c3 d²))
+};
+
+layout(set = 0, binding = 0, std430) readonly buffer GlobalsBuf { Globals g; };
+layout(set = 0, binding = 1, std430) readonly buffer PrimsBuf { Prim prims[]; };
+layout(set = 0, binding = 2, std430) readonly buffer ExtraBuf { vec4 extra[]; };
+layout(set = 0, binding = 3, std430) readonly buffer MaterialsBuf { Material materials[]; };
+layout(set = 0, binding = 4, std430) readonly buffer LightsBuf { Light lights[]; };
+layout(set = 0, binding = 5, std430) readonly buffer CellStartBuf { uint cell_start[]; };
+layout(set = 0, binding = 6, std430) readonly buffer RefsBuf { uint refs[]; };
+
+uvec3 cell_unpack(uint c) { return uvec3(c & 1023u, (c >> 10) & 1023u, (c >> 20) & 1023u); }
+
+// What the scene uses (Globals::trace.y), as a specialization constant so
+// that unused paths compile out. The default (all bits) runs any scene.
+layout(constant_id = 2) const uint FEATURES = 0xFFFFFFFFu;
+const bool HAS_SPHERE = (FEATURES & FEAT_SPHERE) != 0u;
+const bool HAS_PLANE = (FEATURES & FEAT_PLANE) != 0u;
+const bool HAS_TRIANGLE = (FEATURES & FEAT_TRIANGLE) != 0u;
+const bool HAS_POLYGON = (FEATURES & FEAT_POLYGON) != 0u;
+const bool HAS_BOX = (FEATURES & FEAT_BOX) != 0u;
+const bool HAS_QUADRIC = (FEATURES & FEAT_QUADRIC) != 0u;
+const bool HAS_CONE = (FEATURES & FEAT_CONE) != 0u;
+const bool HAS_REFLECT = (FEATURES & FEAT_REFLECT) != 0u;
+const bool HAS_REFRACT = (FEATURES & FEAT_REFRACT) != 0u;
+const bool HAS_ABSORB = (FEATURES & FEAT_ABSORB) != 0u;
+const bool HAS_TRANSMIT_HIGHLIGHT = (FEATURES & FEAT_TRANSMIT_HIGHLIGHT) != 0u;
+const bool HAS_FALLOFF = (FEATURES & FEAT_FALLOFF) != 0u;
+const bool HAS_SMOOTH = (FEATURES & FEAT_SMOOTH) != 0u;
+
+// SceneView::has: the scene's own feature bits (read at run time, as the
+// CPU does). Where the Rust calls s.has(F), the shader writes
+// `HAS_F && has(F)`: identical results whatever FEATURES holds (as long as
+// it is a superset of g.trace.y), and the path compiles out when it is not.
+bool has(uint feature) { return (g.trace.y & feature) != 0u; }
+
+#endif

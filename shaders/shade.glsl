@@ -1,0 +1,110 @@
+// The local model, twin of src/trace/shade.rs:
+// I_L = k_a I_a + Σ_i I_i f(d) S_i [k_d (N·L) + k_sr (V·R_L)^n_r + k_st (V·T_L)^n_t]
+// with one shadow feeler per light (S_i: product of the k_t of what it crosses).
+#ifndef WHITTED_SHADE_GLSL
+#define WHITTED_SHADE_GLSL
+
+#include "grid.glsl"
+
+// Ray counts as the SPD defines them (Rust: trace::RayStats), per
+// invocation, incremented at exactly the places the CPU increments them.
+struct RayStats {
+    uint eye;
+    uint eye_hit;
+    uint reflect;
+    uint refract;
+    uint shadow;
+};
+RayStats stats = RayStats(0u, 0u, 0u, 0u, 0u);
+
+// Direction of light refracted through a surface with unit normal n (facing
+// against i); false on total internal reflection. eta = n_incident / n_transmitted.
+bool refract_dir(vec3 i, vec3 n, float eta, out vec3 t) {
+    precise float cosi = -dot3(n, i);
+    precise float k = 1.0 - eta * eta * (1.0 - cosi * cosi);
+    if (k < 0.0) {
+        return false;
+    }
+    precise vec3 r = i * eta + n * (eta * cosi - sqrt(k));
+    t = normalize3(r);
+    return true;
+}
+
+// Mirror direction of i about unit normal n.
+vec3 reflect_dir(vec3 i, vec3 n) {
+    precise vec3 r = i - n * (2.0 * dot3(i, n));
+    return normalize3(r);
+}
+
+// Local intensity at p seen along d. n: shading normal facing the viewer;
+// ngf: geometric normal facing the viewer; front: the viewer is on the
+// outside of the surface.
+vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
+    float eps = g.params.y;
+    precise vec3 c = mat.ka.xyz * g.ambient.xyz;
+    vec3 v = -d;
+    vec3 kd = mat.kd.xyz;
+    float ksr = mat.ks.x;
+    float kst = mat.ks.z;
+    bool highlight_t = HAS_TRANSMIT_HIGHLIGHT && has(FEAT_TRANSMIT_HIGHLIGHT) && kst > 0.0;
+    for (uint li_ = 0u; li_ < g.counts.z; li_++) {
+        Light light = lights[li_];
+        precise vec3 lv = light.pos.xyz - p;
+        precise float dist = length3(lv);
+        precise vec3 l = lv / dist;
+        precise float ndotl = dot3(n, l);
+        bool facing = ndotl > 0.0;
+        if (!facing && !highlight_t) {
+            continue;
+        }
+        stats.shadow += 1u;
+        precise vec3 o;
+        if (dot3(l, ngf) > 0.0) {
+            o = p + ngf * eps;
+        } else {
+            o = p - ngf * eps;
+        }
+        Ray sray = Ray(o, l);
+        RayPre pre = ray_pre(l);
+        vec3 tr = transmittance(sray, pre, dist, li_);
+        if (max_elem(tr) <= 0.0) {
+            continue;
+        }
+        precise vec3 li = light.color.xyz * tr;
+        if (HAS_FALLOFF && has(FEAT_FALLOFF)) {
+            vec3 f = light.falloff.xyz;
+            precise float att = 1.0 / (f.x + f.y * dist + f.z * dist * dist);
+            li = li * min(att, 1.0);
+        }
+        precise vec3 term = vec3(0.0);
+        if (facing) {
+            term = kd * ndotl;
+            if (ksr > 0.0) {
+                precise vec3 r = n * (2.0 * ndotl) - l;
+                precise float vr = dot3(v, r);
+                if (vr > 0.0) {
+                    precise float spec = ksr * pow(vr, mat.ks.y);
+                    term = term + vec3(spec);
+                }
+            }
+        } else if (HAS_TRANSMIT_HIGHLIGHT) {
+            // The light is on the far side: light refracted through the
+            // surface towards the viewer makes the transmission highlight.
+            // (Reached only when highlight_t, as on the CPU.)
+            float ior = mat.kr.w;
+            precise float eta = front ? ior : 1.0 / ior;
+            vec3 t;
+            if (refract_dir(-l, -n, eta, t)) {
+                precise float vt = dot3(v, t);
+                if (vt > 0.0) {
+                    precise float spec = kst * pow(vt, mat.ks.w);
+                    term = term + vec3(spec);
+                }
+            }
+        }
+        c = c + li * term;
+    }
+    return c;
+}
+
+#endif

@@ -1,0 +1,104 @@
+// The ray tree, walked iteratively: twin of src/trace/tree.rs.
+//
+// An explicit stack in a fixed order (no recursion): pop a ray, find its
+// closest hit, add its weighted local intensity, then push the refracted
+// ray and after it the reflected one (so reflection is walked first). A
+// ray's weight is the product of the k_r/k_t along its path times its
+// medium's Beer–Lambert attenuation, so I = I_L + k_r I_R + k_t I_T is
+// summed in place. A branch ends at the depth limit or when its weight
+// (largest channel) falls under min weight.
+#ifndef WHITTED_TRACE_GLSL
+#define WHITTED_TRACE_GLSL
+
+#include "shade.glsl"
+
+struct Entry {
+    vec3 o;
+    vec3 d;
+    vec3 w;      // accumulated weight of this ray's contribution
+    vec3 medium; // absorption coefficient of the medium the ray travels in
+    uint depth;
+};
+
+// Intensity arriving along an eye ray.
+vec3 trace_ray(Ray ray) {
+    uint max_depth = g.trace.x;
+    float min_weight = g.params.x;
+    float eps = g.params.y;
+    vec3 background = g.background.xyz;
+    Entry stack[STACK_SIZE];
+    stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
+    uint sp = 1u;
+    precise vec3 color = vec3(0.0);
+    while (sp > 0u) {
+        sp -= 1u;
+        Entry e = stack[sp];
+        Ray r = Ray(e.o, e.d);
+        RayPre pre = ray_pre(e.d);
+        Hit h;
+        uint pi;
+        if (!closest_hit(r, pre, INF, h, pi)) {
+            // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
+            if (max_elem(e.medium) <= 0.0) {
+                color = color + e.w * background;
+            }
+            continue;
+        }
+        if (e.depth == 0u) {
+            stats.eye_hit += 1u;
+        }
+        precise vec3 w = e.w;
+        if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
+            precise vec3 x = -e.medium * h.t;
+            w = w * exp(x);
+        }
+        Prim prim = prims[pi];
+        Material mat = materials[prim_material(prim)];
+        precise vec3 p = e.o + e.d * h.t;
+        vec3 ng;
+        vec3 ns;
+        normals(prim, p, h, ng, ns);
+        bool front = dot3(e.d, ng) < 0.0;
+        vec3 n = front ? ns : -ns;
+        vec3 ngf = front ? ng : -ng;
+        vec3 local_ = shade(mat, p, e.d, n, ngf, front);
+        color = color + w * local_;
+        if (e.depth >= max_depth) {
+            continue;
+        }
+        precise vec3 refl = mat.kr.xyz;
+        vec3 kt = mat.kt.xyz;
+        if (HAS_REFRACT && has(FEAT_REFRACT) && max_elem(kt) > 0.0) {
+            float ior = mat.kr.w;
+            precise float eta = front ? 1.0 / ior : ior;
+            vec3 t;
+            if (!refract_dir(e.d, n, eta, t)) {
+                // Total internal reflection: the transmitted share reflects.
+                refl = refl + kt;
+            } else {
+                precise vec3 wt = w * kt;
+                if (max_elem(wt) >= min_weight) {
+                    stats.refract += 1u;
+                    precise vec3 o = p - ngf * eps;
+                    vec3 medium = front ? mat.absorb.xyz : vec3(0.0);
+                    stack[sp] = Entry(o, t, wt, medium, e.depth + 1u);
+                    sp += 1u;
+                }
+            }
+        }
+        // FEAT_REFLECT is set whenever a material has k_r or k_t > 0, the
+        // only ways refl can be positive: the guard changes nothing.
+        if (HAS_REFLECT && max_elem(refl) > 0.0) {
+            precise vec3 wr = w * refl;
+            if (max_elem(wr) >= min_weight) {
+                stats.reflect += 1u;
+                precise vec3 o = p + ngf * eps;
+                stack[sp] = Entry(o, reflect_dir(e.d, n), wr, e.medium, e.depth + 1u);
+                sp += 1u;
+            }
+        }
+    }
+    return color;
+}
+
+#endif

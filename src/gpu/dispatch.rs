@@ -1,0 +1,275 @@
+//! Command buffers, fences and timestamps; the tiled render dispatch.
+//!
+//! The sample lattice is cut into tiles; each tile is one submission
+//! (zero the counters, dispatch, read them back), so no submission runs
+//! long enough to trip a driver watchdog and 32-bit counters cannot wrap.
+
+use super::context::{Context, VkCheck};
+use super::memory::Buffer;
+use super::pipeline::Kernel;
+use super::GpuError;
+use ash::vk;
+use std::sync::Arc;
+
+/// Longest wait for one submission before giving up.
+const FENCE_TIMEOUT_NS: u64 = 600 * 1_000_000_000;
+
+/// One command pool, one primary command buffer, a fence and (when the
+/// queue has timestamps) a two-entry query pool.
+pub struct Commands {
+    ctx: Arc<Context>,
+    pool: vk::CommandPool,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+    queries: vk::QueryPool,
+}
+
+impl Commands {
+    pub fn new(ctx: &Arc<Context>) -> Result<Self, GpuError> {
+        let d = &ctx.device;
+        let mut c = Commands {
+            ctx: ctx.clone(),
+            pool: vk::CommandPool::null(),
+            cmd: vk::CommandBuffer::null(),
+            fence: vk::Fence::null(),
+            queries: vk::QueryPool::null(),
+        };
+        // SAFETY: valid create infos on a live device; each handle is stored
+        // at once so Drop releases it on an early return.
+        unsafe {
+            c.pool = d
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(ctx.info.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+                .vk("vkCreateCommandPool")?;
+            c.cmd = d
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(c.pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(1),
+                )
+                .vk("vkAllocateCommandBuffers")?[0];
+            c.fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .vk("vkCreateFence")?;
+            if ctx.info.timestamps {
+                c.queries = d
+                    .create_query_pool(
+                        &vk::QueryPoolCreateInfo::default()
+                            .query_type(vk::QueryType::TIMESTAMP)
+                            .query_count(2),
+                        None,
+                    )
+                    .vk("vkCreateQueryPool")?;
+            }
+        }
+        Ok(c)
+    }
+
+    /// Records `f` into the command buffer, submits it and waits.
+    pub fn run_once(
+        &self,
+        f: impl FnOnce(&ash::Device, vk::CommandBuffer),
+    ) -> Result<(), GpuError> {
+        let d = &self.ctx.device;
+        // SAFETY: the command buffer is idle (the previous submission was
+        // waited for) and is recorded, submitted and waited for here.
+        unsafe {
+            d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
+                .vk("vkResetCommandBuffer")?;
+            d.begin_command_buffer(
+                self.cmd,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .vk("vkBeginCommandBuffer")?;
+            f(d, self.cmd);
+            d.end_command_buffer(self.cmd).vk("vkEndCommandBuffer")?;
+            let cmds = [self.cmd];
+            let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+            d.reset_fences(&[self.fence]).vk("vkResetFences")?;
+            d.queue_submit(self.ctx.queue, &submit, self.fence)
+                .vk("vkQueueSubmit")?;
+            match d.wait_for_fences(&[self.fence], true, FENCE_TIMEOUT_NS) {
+                Ok(()) => Ok(()),
+                Err(vk::Result::TIMEOUT) => Err(GpuError::Internal(format!(
+                    "a submission ran over {} s; use a smaller --tile",
+                    FENCE_TIMEOUT_NS / 1_000_000_000
+                ))),
+                Err(result) => Err(GpuError::Vulkan {
+                    call: "vkWaitForFences",
+                    result,
+                }),
+            }
+        }
+    }
+
+    /// Records a compute dispatch of `groups` between two timestamps:
+    /// zero `counters`, barrier, dispatch, barrier to host reads.
+    pub fn record_dispatch(
+        &self,
+        d: &ash::Device,
+        cmd: vk::CommandBuffer,
+        kernel: &Kernel,
+        push: &[u8],
+        groups: [u32; 3],
+        counters: Option<&Buffer>,
+    ) {
+        debug_assert_eq!(push.len() as u32, kernel.push_size);
+        let timed = self.queries != vk::QueryPool::null();
+        // SAFETY: `cmd` is recording; every handle is live and owned by
+        // this device; the barriers order the fill before the shader and
+        // the shader before the host's reads after the fence.
+        unsafe {
+            if timed {
+                d.cmd_reset_query_pool(cmd, self.queries, 0, 2);
+            }
+            if let Some(c) = counters {
+                d.cmd_fill_buffer(cmd, c.buffer, 0, vk::WHOLE_SIZE, 0);
+                let b = [vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)];
+                d.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &b,
+                    &[],
+                    &[],
+                );
+            }
+            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
+            d.cmd_bind_descriptor_sets(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                kernel.layout,
+                0,
+                &[kernel.set],
+                &[],
+            );
+            if !push.is_empty() {
+                d.cmd_push_constants(cmd, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+            }
+            if timed {
+                d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, self.queries, 0);
+            }
+            d.cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
+            if timed {
+                d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.queries, 1);
+            }
+            let b = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &b,
+                &[],
+                &[],
+            );
+        }
+    }
+
+    /// Seconds between the two timestamps of the last dispatch, if the
+    /// queue has timestamps.
+    pub fn elapsed(&self) -> Result<Option<f64>, GpuError> {
+        if self.queries == vk::QueryPool::null() {
+            return Ok(None);
+        }
+        let mut t = [0u64; 2];
+        // SAFETY: both queries were written by the submission just waited for.
+        unsafe {
+            self.ctx.device.get_query_pool_results(
+                self.queries,
+                0,
+                &mut t,
+                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+            )
+        }
+        .vk("vkGetQueryPoolResults")?;
+        let mask = self.ctx.info.timestamp_mask;
+        let ticks = (t[1] & mask).wrapping_sub(t[0] & mask) & mask;
+        Ok(Some(
+            ticks as f64 * self.ctx.info.timestamp_period_ns as f64 * 1e-9,
+        ))
+    }
+}
+
+impl Drop for Commands {
+    fn drop(&mut self) {
+        // SAFETY: every submission was waited for; the pool frees its
+        // command buffer; null handles are ignored.
+        unsafe {
+            let d = &self.ctx.device;
+            d.destroy_query_pool(self.queries, None);
+            d.destroy_fence(self.fence, None);
+            d.destroy_command_pool(self.pool, None);
+        }
+    }
+}
+
+/// One rectangle of the sample lattice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub w: u32,
+    pub h: u32,
+}
+
+/// Cuts a `lw × lh` lattice into tiles of at most `tile × tile` samples,
+/// row by row; rows shrink so one tile traces at most `max_samples` eye
+/// rays (each pixel of a centre lattice traces `spp`).
+pub fn tiles(lw: u32, lh: u32, tile: u32, spp: u32, max_samples: u64) -> Vec<Tile> {
+    let tw = tile.clamp(1, lw.max(1));
+    let rows_cap = (max_samples / (tw as u64 * spp.max(1) as u64)).max(1);
+    let th = (tile as u64).min(rows_cap).clamp(1, lh.max(1) as u64) as u32;
+    let mut out = Vec::new();
+    let mut y = 0;
+    while y < lh {
+        let h = th.min(lh - y);
+        let mut x = 0;
+        while x < lw {
+            let w = tw.min(lw - x);
+            out.push(Tile { x0: x, y0: y, w, h });
+            x += w;
+        }
+        y += h;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_the_lattice_once() {
+        for &(lw, lh, t, spp) in &[
+            (1, 1, 64, 1),
+            (65, 33, 16, 1),
+            (640, 480, 256, 64),
+            (7, 300, 5, 3),
+        ] {
+            let ts = tiles(lw, lh, t, spp, 1 << 16);
+            let mut seen = vec![0u8; (lw * lh) as usize];
+            for tl in &ts {
+                assert!(tl.w >= 1 && tl.h >= 1 && tl.w <= t && tl.h <= t);
+                assert!(tl.w as u64 * tl.h as u64 * spp as u64 <= (1 << 16) || tl.h == 1);
+                for y in tl.y0..tl.y0 + tl.h {
+                    for x in tl.x0..tl.x0 + tl.w {
+                        seen[(y * lw + x) as usize] += 1;
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&s| s == 1), "{lw}x{lh} tile {t}");
+        }
+    }
+}

@@ -1,0 +1,79 @@
+//! Shared by the GPU test files: one device per test binary, the skip/fail
+//! policy, and the validation-error check.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use whitted::gpu::{Gpu, GpuError, GpuOptions};
+use whitted::pack::{self, Packed, Settings};
+
+/// `WHITTED_REQUIRE_GPU=1`: a missing Vulkan device fails the test.
+pub fn require_gpu() -> bool {
+    std::env::var("WHITTED_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+/// The device every GPU test of this binary shares (with the validation
+/// layer on), or None (after a printed note) when there is no Vulkan
+/// device and WHITTED_REQUIRE_GPU is not 1. Any other error fails.
+pub fn gpu() -> Option<&'static Gpu> {
+    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
+    GPU.get_or_init(|| {
+        // Before the instance exists: the layer is chosen at creation.
+        std::env::set_var("WHITTED_VALIDATION", "1");
+        match Gpu::new(&GpuOptions::default()) {
+            Ok(g) => {
+                eprintln!(
+                    "GPU tests on {} ({}), validation layer {}",
+                    g.info().name,
+                    g.info().kind.name(),
+                    if g.validation() {
+                        "on"
+                    } else {
+                        "not installed"
+                    }
+                );
+                Some(g)
+            }
+            Err(e @ GpuError::NoDevice(_)) if !require_gpu() => {
+                eprintln!(
+                    "note: skipping GPU tests: {e} (set WHITTED_REQUIRE_GPU=1 to fail instead)"
+                );
+                None
+            }
+            Err(e) => panic!("cannot open a Vulkan device: {e}"),
+        }
+    })
+    .as_ref()
+}
+
+/// Fails when the validation layer (or driver) has reported an error.
+pub fn assert_no_validation_errors() {
+    assert_eq!(
+        whitted::gpu::validation_errors(),
+        0,
+        "the Vulkan debug messenger reported errors (see stderr)"
+    );
+}
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn load(path: &Path, settings: &Settings) -> Packed {
+    let s = whitted::scene::load(path).unwrap_or_else(|e| panic!("{e}"));
+    pack::pack(&s, settings)
+}
+
+pub fn parse(text: &str, settings: &Settings) -> Packed {
+    let s =
+        whitted::scene::parse_str(text, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"));
+    pack::pack(&s, settings)
+}
+
+pub fn small(w: u32, h: u32) -> Settings {
+    Settings {
+        width: Some(w),
+        height: Some(h),
+        ..Default::default()
+    }
+}
