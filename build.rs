@@ -32,6 +32,7 @@ fn const_u32(name: &str) -> u32 {
         "STACK_SIZE" => STACK_SIZE,
         "GRID_MAX_DIM" => GRID_MAX_DIM,
         "SHADOW_CACHE_LIGHTS" => SHADOW_CACHE_LIGHTS,
+        "SKIP_MAX" => SKIP_MAX,
         "KIND_SPHERE" => KIND_SPHERE,
         "KIND_PLANE" => KIND_PLANE,
         "KIND_TRIANGLE" => KIND_TRIANGLE,

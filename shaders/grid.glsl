@@ -26,8 +26,9 @@ struct Dda {
     // only there.
     int prev_axis;
     int prev_coord;
-    // The ray's origin and 1/direction, per axis.
+    // The ray's origin, direction and 1/direction, per axis.
     vec3 o;
+    vec3 d;
     vec3 inv;
 };
 
@@ -74,6 +75,7 @@ bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
     dda.prev_axis = 3;
     dda.prev_coord = -1;
     dda.o = o;
+    dda.d = d;
     dda.inv = inv;
     for (int i = 0; i < 3; i++) {
         int n = int(g.grid_dims[i]);
@@ -119,6 +121,73 @@ bool dda_advance(inout Dda dda, int axis) {
     dda.cell[axis] += dda.step[axis];
     dda.next[axis] = dda_boundary(dda, axis);
     return dda.cell[axis] >= 0 && dda.cell[axis] < int(g.grid_dims[axis]);
+}
+
+// Empty-space distance of cell ci (0: the cell lists primitives): the bytes
+// after the ncells + 1 offsets in cell_start.
+uint cell_skip(uint ci) {
+    uint word = cell_start[g.grid_dims.w + 1u + ci / 4u];
+    return (word >> (8u * (ci % 4u))) & 255u;
+}
+
+// Where the ray leaves the empty cube of half-width r cells around the
+// current cell; the axis it crosses in `axis`.
+float dda_jump_exit(Dda dda, int r, out int axis) {
+    float best = INF;
+    axis = 0;
+    for (int i = 0; i < 3; i++) {
+        if (dda.step[i] == 0) {
+            continue;
+        }
+        int edge = dda.step[i] > 0 ? dda.cell[i] + r + 1 : dda.cell[i] - r;
+        precise float plane = g.grid_min[i] + float(edge) * g.grid_cell[i];
+        precise float t = (plane - dda.o[i]) * dda.inv[i];
+        if (t < best) {
+            best = t;
+            axis = i;
+        }
+    }
+    return best;
+}
+
+// Jumps to the cell the ray enters at t (where it leaves the empty cube of
+// half-width r across axis); on the other axes the cell comes from the
+// point, kept inside the cube and never behind the current cell. False
+// when the ray leaves the grid.
+bool dda_jump(inout Dda dda, int r, float t, int axis) {
+    bool inside = true;
+    for (int i = 0; i < 3; i++) {
+        if (dda.step[i] == 0) {
+            continue;
+        }
+        int c;
+        if (i == axis) {
+            c = dda.cell[i] + dda.step[i] * (r + 1);
+        } else {
+            precise float p = dda.o[i] + dda.d[i] * t;
+            precise float f = floor((p - g.grid_min[i]) / g.grid_cell[i]);
+            int lo = dda.step[i] > 0 ? dda.cell[i] : dda.cell[i] - r;
+            int hi = dda.step[i] > 0 ? dda.cell[i] + r : dda.cell[i];
+            if (isnan(f) || f <= float(lo)) {
+                c = lo;
+            } else if (f >= float(hi)) {
+                c = hi;
+            } else {
+                c = int(f);
+            }
+        }
+        dda.cell[i] = c;
+        inside = inside && c >= 0 && c < int(g.grid_dims[i]);
+    }
+    dda.prev_axis = 3;
+    if (inside) {
+        for (int i = 0; i < 3; i++) {
+            if (dda.step[i] != 0) {
+                dda.next[i] = dda_boundary(dda, i);
+            }
+        }
+    }
+    return inside;
 }
 
 // True when the primitive was already tested in the previous cell. It is
@@ -181,9 +250,18 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
     }
     uint max_cells = dda_max_cells();
     for (uint visited = 0u; visited < max_cells; visited++) {
+        uint ci = cell_index(dda.cell);
+        int skip = int(cell_skip(ci));
+        if (skip >= 2) {
+            int jaxis;
+            float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
+            if (best_t <= t_jump || t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
+                break;
+            }
+            continue;
+        }
         int axis;
         float t_exit = dda_exit(dda, axis);
-        uint ci = cell_index(dda.cell);
         uint start = cell_start[ci];
         uint end = cell_start[ci + 1u];
         for (uint k = start; k < end; k++) {
@@ -236,9 +314,18 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     if (!blocked && dda_setup(ray, pre, dist, dda)) {
         uint max_cells = dda_max_cells();
         for (uint visited = 0u; visited < max_cells; visited++) {
+            uint ci = cell_index(dda.cell);
+            int skip = int(cell_skip(ci));
+            if (skip >= 2) {
+                int jaxis;
+                float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
+                if (t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
+                    break;
+                }
+                continue;
+            }
             int axis;
             float t_exit = dda_exit(dda, axis);
-            uint ci = cell_index(dda.cell);
             uint start = cell_start[ci];
             uint end = cell_start[ci + 1u];
             for (uint k = start; k < end; k++) {

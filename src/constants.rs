@@ -16,6 +16,10 @@ pub const EPS_OFFSET_REL: f32 = 2.0e-5;
 pub const SHADOW_CACHE_LIGHTS: u32 = 8;
 /// Most cells on one grid axis (cell ranges pack 10 bits per axis).
 pub const GRID_MAX_DIM: u32 = 1023;
+/// Cap of the per-cell empty-space distance (cells); an empty cell whose
+/// nearest listed cell is k cells away (chessboard metric) lets a ray jump
+/// over the k − 1 cells around it.
+pub const SKIP_MAX: u32 = 15;
 /// Target cells per finite primitive for the grid heuristic.
 pub const GRID_DENSITY: f32 = 3.0;
 /// Primitive kinds (low 4 bits of `Prim::kind_mat`).

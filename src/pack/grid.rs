@@ -8,7 +8,7 @@
 //! scenes get a flat grid rather than a degenerate one) and V their product.
 
 use super::layout::cell_pack;
-use crate::constants::{GRID_DENSITY, GRID_MAX_DIM};
+use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, SKIP_MAX};
 
 /// Bounds in camera-relative f64.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,6 +52,8 @@ pub struct Grid {
     pub cell: [f32; 3],
     /// Per primitive: packed lowest and highest cell of its bounds.
     pub ranges: Vec<(u32, u32)>,
+    /// `ncells + 1` offsets into `refs`, then the empty-space distances,
+    /// one byte per cell, four to a word (see `skip_distances`).
     pub cell_start: Vec<u32>,
     pub refs: Vec<u32>,
 }
@@ -130,20 +132,107 @@ pub fn build(bounds: &[Bounds], dims: Option<[u32; 3]>) -> Grid {
             fill[c] += 1;
         });
     }
+    let skip = skip_distances(&counts, dims);
+    let mut cell_start = counts;
+    cell_start.extend(skip.chunks(4).map(|c| {
+        c.iter()
+            .enumerate()
+            .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
+    }));
     Grid {
         lo,
         hi,
         dims,
         cell,
         ranges,
-        cell_start: counts,
+        cell_start,
         refs,
     }
+}
+
+/// Empty-space distances ("proximity clouds", Cohen & Sheffer 1994): for
+/// each cell, the chessboard distance in cells to the nearest cell that
+/// lists a primitive, capped at `SKIP_MAX` (0 for a listed cell). Every
+/// cell within distance k − 1 of a cell at distance k is empty, so a ray
+/// may jump to where it leaves that cube of cells. Separable: a 1D pass
+/// along each axis of d(x) = min over x' of max(|x − x'|, d_prev(x')).
+pub fn skip_distances(cell_start: &[u32], dims: [u32; 3]) -> Vec<u8> {
+    let [nx, ny, nz] = dims.map(|d| d as usize);
+    let cap = SKIP_MAX as usize;
+    let mut d: Vec<u8> = (0..nx * ny * nz)
+        .map(|c| {
+            if cell_start[c] == cell_start[c + 1] {
+                cap as u8
+            } else {
+                0
+            }
+        })
+        .collect();
+    let strides = [1, nx, nx * ny];
+    for axis in 0..3 {
+        let n = dims[axis] as usize;
+        let stride = strides[axis];
+        let mut line = vec![0u8; n];
+        for base in 0..nx * ny * nz {
+            // visit each line once, from its first cell
+            if (base / stride) % n != 0 {
+                continue;
+            }
+            for (i, v) in line.iter_mut().enumerate() {
+                *v = d[base + i * stride];
+            }
+            for i in 0..n {
+                let mut best = line[i] as usize;
+                let lo = i.saturating_sub(cap);
+                let hi = (i + cap).min(n - 1);
+                for (j, &v) in line.iter().enumerate().take(hi + 1).skip(lo) {
+                    best = best.min((v as usize).max(i.abs_diff(j)));
+                }
+                d[base + i * stride] = best as u8;
+            }
+        }
+    }
+    d
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn skip_distances_are_chessboard_distances_to_listed_cells() {
+        let dims = [7u32, 5, 4];
+        let n = 7 * 5 * 4;
+        let listed = [(1usize, 1usize, 1usize), (6, 4, 3)];
+        let idx = |x: usize, y: usize, z: usize| x + 7 * (y + 5 * z);
+        let mut counts = vec![0u32; n + 1];
+        for c in 0..n {
+            let add = listed.iter().any(|&(x, y, z)| idx(x, y, z) == c) as u32;
+            counts[c + 1] = counts[c] + add;
+        }
+        let d = skip_distances(&counts, dims);
+        for z in 0..4usize {
+            for y in 0..5usize {
+                for x in 0..7usize {
+                    let want = listed
+                        .iter()
+                        .map(|&(a, b, c)| x.abs_diff(a).max(y.abs_diff(b)).max(z.abs_diff(c)))
+                        .min()
+                        .unwrap();
+                    assert_eq!(
+                        d[idx(x, y, z)] as usize,
+                        want.min(SKIP_MAX as usize),
+                        "({x},{y},{z})"
+                    );
+                }
+            }
+        }
+        // nothing listed at all: every cell at the cap
+        let empty = vec![0u32; n + 1];
+        assert!(skip_distances(&empty, dims)
+            .iter()
+            .all(|&v| v as u32 == SKIP_MAX));
+    }
 
     #[test]
     fn resolution_follows_extent_and_count() {
@@ -174,7 +263,7 @@ mod tests {
             },
         ];
         let g = build(&bounds, Some([3, 3, 3]));
-        assert_eq!(g.cell_start.len(), 28);
+        assert_eq!(g.cell_start.len(), 28 + 7);
         let listed = |p: u32| {
             (0..27)
                 .filter(|&c| {

@@ -347,6 +347,31 @@ impl Builder {
     }
 }
 
+/// Spreads the low 10 bits of `v` to every third bit.
+fn spread3(v: u32) -> u64 {
+    let mut x = (v & 1023) as u64;
+    x = (x | x << 16) & 0x0300_00FF;
+    x = (x | x << 8) & 0x0300_F00F;
+    x = (x | x << 4) & 0x030C_30C3;
+    x = (x | x << 2) & 0x0924_9249;
+    x
+}
+
+/// Puts primitives that are near in space near in memory (Morton order of
+/// their bounds' centres): a ray's tests then touch few cache lines, which
+/// is what keeps a million primitives from being memory-bound.
+fn morton_order(prims: &mut [(Prim, Bounds)]) {
+    let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
+    let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
+    prims.sort_by_cached_key(|(_, b)| {
+        let q = [0, 1, 2].map(|i| {
+            let c = (b.lo[i] + b.hi[i]) * 0.5;
+            (((c - all.lo[i]) / e[i]) * 1023.0).clamp(0.0, 1023.0) as u32
+        });
+        spread3(q[0]) | spread3(q[1]) << 1 | spread3(q[2]) << 2
+    });
+}
+
 /// Coefficients of the same quadric in coordinates relative to `o`
 /// (x = x' + o), scaled so the largest is 1 (the surface is unchanged).
 pub fn relative_quadric(k: &[f64; 10], o: DVec3) -> [f64; 10] {
@@ -434,6 +459,7 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
         .collect();
 
     let t0 = Instant::now();
+    morton_order(&mut b.bounded);
     let bounds: Vec<Bounds> = b.bounded.iter().map(|(_, bb)| *bb).collect();
     let g = grid::build(&bounds, settings.grid);
     let grid_seconds = t0.elapsed().as_secs_f64();
@@ -542,6 +568,15 @@ mod tests {
             assert!(q(&r, p - o).abs() < 1e-12, "{}", q(&r, p - o));
         }
         assert!(q(&r, DVec3::new(1.0, 2.0, 3.0) - o) < 0.0);
+    }
+
+    #[test]
+    fn morton_codes_interleave() {
+        assert_eq!(spread3(0b11), 0b1001);
+        assert_eq!(spread3(1023).count_ones(), 10);
+        let code = |x: u32, y: u32, z: u32| spread3(x) | spread3(y) << 1 | spread3(z) << 2;
+        assert_eq!(code(1, 1, 1), 7);
+        assert!(code(1, 0, 0) < code(0, 1, 0) && code(0, 1, 0) < code(0, 0, 1));
     }
 
     #[test]

@@ -31,8 +31,9 @@ pub struct Dda<F> {
     /// only there.
     pub prev_axis: usize,
     pub prev_coord: i32,
-    /// The ray's origin and 1/direction, per axis.
+    /// The ray's origin, direction and 1/direction, per axis.
     pub o: [F; 3],
+    pub d: [F; 3],
     pub inv: [F; 3],
 }
 
@@ -81,6 +82,7 @@ pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
         prev_axis: 3,
         prev_coord: -1,
         o,
+        d,
         inv,
     };
     for i in 0..3 {
@@ -124,6 +126,86 @@ pub fn dda_advance<F: Real>(s: &SceneView, dda: &mut Dda<F>, axis: usize) -> boo
     dda.cell[axis] += dda.step[axis];
     dda.next[axis] = dda_boundary(s, dda, axis);
     dda.cell[axis] >= 0 && dda.cell[axis] < s.globals.grid_dims[axis] as i32
+}
+
+/// Empty-space distance of cell `ci` (0: the cell lists primitives): the
+/// bytes after the `ncells + 1` offsets in `cell_start`.
+#[inline(always)]
+pub fn cell_skip(s: &SceneView, ci: usize) -> u32 {
+    let word = s.cell_start[s.globals.grid_dims[3] as usize + 1 + ci / 4];
+    (word >> (8 * (ci % 4) as u32)) & 255
+}
+
+/// Where the ray leaves the empty cube of half-width `r` cells around the
+/// current cell, and across which axis.
+#[inline(always)]
+pub fn dda_jump_exit<F: Real>(s: &SceneView, dda: &Dda<F>, r: i32) -> (F, usize) {
+    let g = s.globals;
+    let mut best = F::infinity();
+    let mut axis = 0;
+    for i in 0..3 {
+        if dda.step[i] == 0 {
+            continue;
+        }
+        let edge = if dda.step[i] > 0 {
+            dda.cell[i] + r + 1
+        } else {
+            dda.cell[i] - r
+        };
+        let plane = F::of(g.grid_min[i]) + F::of(edge as f32) * F::of(g.grid_cell[i]);
+        let t = (plane - dda.o[i]) * dda.inv[i];
+        if t < best {
+            best = t;
+            axis = i;
+        }
+    }
+    (best, axis)
+}
+
+/// Jumps to the cell the ray enters at `t` (where it leaves the empty cube
+/// of half-width `r` across `axis`). On the other axes the cell comes from
+/// the point, kept inside the cube and never behind the current cell (cell
+/// indices stay monotone along the ray, which the test-once rule needs).
+/// No primitive was tested in the empty cell left, so none is skipped next.
+/// False when the ray leaves the grid.
+#[inline(always)]
+pub fn dda_jump<F: Real>(s: &SceneView, dda: &mut Dda<F>, r: i32, t: F, axis: usize) -> bool {
+    let g = s.globals;
+    let mut inside = true;
+    for i in 0..3 {
+        if dda.step[i] == 0 {
+            continue;
+        }
+        let c = if i == axis {
+            dda.cell[i] + dda.step[i] * (r + 1)
+        } else {
+            let p = dda.o[i] + dda.d[i] * t;
+            let f = ((p - F::of(g.grid_min[i])) / F::of(g.grid_cell[i])).floor();
+            let (lo, hi) = if dda.step[i] > 0 {
+                (dda.cell[i], dda.cell[i] + r)
+            } else {
+                (dda.cell[i] - r, dda.cell[i])
+            };
+            if f.is_nan() || f <= F::of(lo as f32) {
+                lo
+            } else if f >= F::of(hi as f32) {
+                hi
+            } else {
+                f.to_f32() as i32
+            }
+        };
+        dda.cell[i] = c;
+        inside = inside && c >= 0 && c < g.grid_dims[i] as i32;
+    }
+    dda.prev_axis = 3;
+    if inside {
+        for i in 0..3 {
+            if dda.step[i] != 0 {
+                dda.next[i] = dda_boundary(s, dda, i);
+            }
+        }
+    }
+    inside
 }
 
 /// True when the primitive was already tested in the previous cell. It is
@@ -193,8 +275,19 @@ pub fn closest_hit<F: Real>(
     };
     for _ in 0..dda_max_cells(s) {
         work.cells += 1;
-        let (t_exit, axis) = dda_exit(&dda);
         let ci = cell_index(s, dda.cell);
+        let skip = cell_skip(s, ci) as i32;
+        if skip >= 2 {
+            let (t_jump, axis) = dda_jump_exit(s, &dda, skip - 1);
+            if best_t <= t_jump
+                || t_jump >= dda.t_end
+                || !dda_jump(s, &mut dda, skip - 1, t_jump, axis)
+            {
+                return best;
+            }
+            continue;
+        }
+        let (t_exit, axis) = dda_exit(&dda);
         let (start, end) = (s.cell_start[ci] as usize, s.cell_start[ci + 1] as usize);
         for &r in &s.refs[start..end] {
             let prim = &s.prims[r as usize];
@@ -260,8 +353,16 @@ pub fn transmittance<F: Real>(
     };
     for _ in 0..dda_max_cells(s) {
         work.cells += 1;
-        let (t_exit, axis) = dda_exit(&dda);
         let ci = cell_index(s, dda.cell);
+        let skip = cell_skip(s, ci) as i32;
+        if skip >= 2 {
+            let (t_jump, axis) = dda_jump_exit(s, &dda, skip - 1);
+            if t_jump >= dda.t_end || !dda_jump(s, &mut dda, skip - 1, t_jump, axis) {
+                return trans;
+            }
+            continue;
+        }
+        let (t_exit, axis) = dda_exit(&dda);
         let (start, end) = (s.cell_start[ci] as usize, s.cell_start[ci + 1] as usize);
         for &r in &s.refs[start..end] {
             let prim = &s.prims[r as usize];
