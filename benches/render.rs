@@ -4,7 +4,10 @@
 //!   the SPD counts them) on three scenes.
 //! - `spheres/*`: render time of the random-spheres scene (src/gen.rs) from
 //!   1 k to 1 M spheres at the same resolution: a uniform grid sized to
-//!   the scene should keep it nearly flat.
+//!   the scene should keep it nearly flat. (Denser fields also reflect
+//!   more: the ray count grows too.)
+//! - `sphereflake/*`: a sphereflake from 821 to 597 872 primitives; the
+//!   picture and the ray count hardly change, so this is the grid alone.
 //!
 //! Run: `cargo bench --bench render` (add `-- spheres` for one group).
 
@@ -50,6 +53,16 @@ fn spheres(c: &mut Criterion) {
     for n in [1_000usize, 10_000, 100_000, 1_000_000] {
         let p = packed(&gen::random_spheres(n, 1), 512, 384);
         g.bench_with_input(BenchmarkId::from_parameter(n), &p, |b, p| {
+            b.iter(|| cpu::render(p, &|_, _| {}))
+        });
+    }
+    g.finish();
+    // The same picture with more and more spheres: the grid alone.
+    let mut g = c.benchmark_group("sphereflake");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    for level in [3u32, 4, 5, 6] {
+        let p = packed(&gen::sphereflake(level), 512, 384);
+        g.bench_with_input(BenchmarkId::from_parameter(p.prims.len()), &p, |b, p| {
             b.iter(|| cpu::render(p, &|_, _| {}))
         });
     }

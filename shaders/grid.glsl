@@ -251,7 +251,9 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
     uint max_cells = dda_max_cells();
     for (uint visited = 0u; visited < max_cells; visited++) {
         uint ci = cell_index(dda.cell);
-        int skip = int(cell_skip(ci));
+        uint start = cell_start[ci];
+        uint end = cell_start[ci + 1u];
+        int skip = start == end ? int(cell_skip(ci)) : 0;
         if (skip >= 2) {
             int jaxis;
             float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
@@ -262,8 +264,6 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
         }
         int axis;
         float t_exit = dda_exit(dda, axis);
-        uint start = cell_start[ci];
-        uint end = cell_start[ci + 1u];
         for (uint k = start; k < end; k++) {
             uint r = refs[k];
             Prim prim = prims[r];
@@ -315,7 +315,9 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
         uint max_cells = dda_max_cells();
         for (uint visited = 0u; visited < max_cells; visited++) {
             uint ci = cell_index(dda.cell);
-            int skip = int(cell_skip(ci));
+            uint start = cell_start[ci];
+            uint end = cell_start[ci + 1u];
+            int skip = start == end ? int(cell_skip(ci)) : 0;
             if (skip >= 2) {
                 int jaxis;
                 float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
@@ -326,8 +328,6 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
             }
             int axis;
             float t_exit = dda_exit(dda, axis);
-            uint start = cell_start[ci];
-            uint end = cell_start[ci + 1u];
             for (uint k = start; k < end; k++) {
                 uint r = refs[k];
                 Prim prim = prims[r];

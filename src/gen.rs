@@ -1,10 +1,12 @@
 //! Procedural scenes for benchmarks and tests.
 //!
 //! `random_spheres(n, seed)`: n spheres scattered uniformly in the cube
-//! [-1, 1]³ with radius 0.3 × their mean spacing (2/∛n), so a ray meets the
-//! first sphere after about the same number of spacings whatever n is:
-//! the grid's work per ray stays flat from 1 k to 1 M spheres, and render
-//! time should too. Three lights, a floor (a large square), four materials (one of
+//! [-1, 1]³ with radius 0.45 × their mean spacing (2/∛n), so a ray meets
+//! the first sphere after about the same number of spacings whatever n is
+//! (the grid's work per ray stays flat from 1 k to 1 M spheres), and the
+//! cube is optically thick even at 1 k (the mean free path, 1/(n/8 · πr²),
+//! is about a sixth of its side), so the picture and the ray count change
+//! little with n: render time measures the acceleration structure. Three lights, a floor (a large square), four materials (one of
 //! them a mirror).
 
 use crate::scene::{Camera, Light, Material, Object, Scene, Shape};
@@ -30,7 +32,7 @@ impl Rng {
 pub fn random_spheres(n: usize, seed: u64) -> Scene {
     let mut rng = Rng::new(seed);
     let spacing = 2.0 / (n.max(1) as f64).cbrt();
-    let radius = 0.3 * spacing;
+    let radius = 0.45 * spacing;
     let materials = vec![
         Material::default(),
         Material {
@@ -116,9 +118,78 @@ pub fn random_spheres(n: usize, seed: u64) -> Scene {
     }
 }
 
+/// A sphereflake after Haines' SPD `balls`: a sphere with nine children a
+/// third its radius on its surface (six round its equator, three above),
+/// each with nine of its own, `level` times: (9^(level+1) − 1)/8 spheres
+/// (level 3: 820, 4: 7 381, 5: 66 430, 6: 597 871). The picture hardly
+/// changes with the level, so render time against level shows how the
+/// grid scales with the primitive count alone.
+pub fn sphereflake(level: u32) -> Scene {
+    let mut scene = random_spheres(0, 1);
+    scene.objects.truncate(1); // keep the floor
+    scene.camera.from = DVec3::new(2.1, 1.3, 1.7);
+    scene.camera.at = DVec3::new(0.0, 0.0, -0.1);
+    fn grow(objects: &mut Vec<Object>, c: DVec3, r: f64, axis: DVec3, level: u32, mat: u32) {
+        objects.push(Object {
+            shape: Shape::Sphere {
+                center: c,
+                radius: r,
+            },
+            material: mat,
+        });
+        if level == 0 {
+            return;
+        }
+        let t = if axis.x.abs() < 0.9 {
+            DVec3::X
+        } else {
+            DVec3::Y
+        };
+        let u = axis.cross(t).normalize();
+        let v = axis.cross(u);
+        let child = r / 3.0;
+        for k in 0..9 {
+            let (elev, az) = if k < 6 {
+                (0.0f64, k as f64 * std::f64::consts::FRAC_PI_3)
+            } else {
+                (
+                    std::f64::consts::FRAC_PI_3,
+                    (k - 6) as f64 * 2.0 * std::f64::consts::FRAC_PI_3 + 0.5,
+                )
+            };
+            let dir = (u * az.cos() + v * az.sin()) * elev.cos() + axis * elev.sin();
+            grow(
+                objects,
+                c + dir * (r + child),
+                child,
+                dir,
+                level - 1,
+                1 + (mat % 3),
+            );
+        }
+    }
+    grow(
+        &mut scene.objects,
+        DVec3::new(0.0, 0.0, -0.55),
+        0.5,
+        DVec3::Z,
+        level,
+        2,
+    );
+    scene.source = PathBuf::from(format!("sphereflake-{level}"));
+    scene
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sphereflake_counts() {
+        for (level, n) in [(0, 1), (1, 10), (3, 820), (4, 7381)] {
+            assert_eq!(sphereflake(level).objects.len(), n + 1, "level {level}");
+        }
+    }
 
     #[test]
     fn deterministic_and_inside_the_cube() {
@@ -131,7 +202,7 @@ mod tests {
                 panic!("not a sphere")
             };
             assert!(center.abs().max_element() <= 1.0);
-            assert!((radius - 0.3 * 2.0 / 500f64.cbrt()).abs() < 1e-12);
+            assert!((radius - 0.45 * 2.0 / 500f64.cbrt()).abs() < 1e-12);
         }
     }
 }

@@ -47,7 +47,8 @@ enum Command {
     ///
     /// Example: whitted validate scenes/showcase.toml --width 160 --height 120 --diff diff.png
     Validate(ValidateArgs),
-    /// Write a procedural scene (for benchmarks) as NFF.
+    /// Write a procedural scene (for benchmarks) as NFF: random spheres, or
+    /// a sphereflake.
     ///
     /// Example: whitted generate --count 100000 -o spheres-100k.nff
     Generate(GenerateArgs),
@@ -58,13 +59,17 @@ enum Command {
 
 #[derive(Args)]
 struct GenerateArgs {
-    /// Spheres scattered in the cube [-1,1]³, radius 0.3 × their mean
+    /// Spheres scattered in the cube [-1,1]³, radius 0.45 × their mean
     /// spacing, over a floor, lit by three lights (see src/gen.rs).
     #[arg(long, default_value_t = 10_000, value_parser = clap::value_parser!(u64).range(1..=50_000_000))]
     count: u64,
     /// Seed of the placement (same seed, same scene).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Write a sphereflake of this level instead ((9^(L+1) − 1)/8 spheres
+    /// over a floor; level 6 has 597 871).
+    #[arg(long, value_name = "LEVEL", conflicts_with_all = ["count", "seed"], value_parser = clap::value_parser!(u32).range(0..=7))]
+    sphereflake: Option<u32>,
     /// Output .nff file.
     #[arg(short, long)]
     output: PathBuf,
@@ -380,7 +385,10 @@ fn render(a: RenderArgs) -> Result<()> {
 }
 
 fn generate(a: GenerateArgs) -> Result<()> {
-    let scene = whitted::gen::random_spheres(a.count as usize, a.seed);
+    let scene = match a.sphereflake {
+        Some(level) => whitted::gen::sphereflake(level),
+        None => whitted::gen::random_spheres(a.count as usize, a.seed),
+    };
     let text = whitted::export::to_nff(&scene)?;
     write_atomic(&a.output, text.as_bytes()).map_err(user)
 }

@@ -318,12 +318,6 @@ impl Gpu {
         self.render_with(shaders::RENDER, "render", packed, opts, progress)
     }
 
-    /// `render` with the plumbing test kernel `shaders/smoke.comp`.
-    #[doc(hidden)]
-    pub fn render_smoke(&self, packed: &Packed, opts: &GpuOptions) -> Result<Frame, GpuError> {
-        self.render_with(shaders::SMOKE, "smoke", packed, opts, &|_, _| {})
-    }
-
     fn render_with(
         &self,
         spirv: &[u8],
