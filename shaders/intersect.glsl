@@ -180,29 +180,23 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     float px = p[i0];
     float py = p[i1];
     uint base = prim.data;
-    if (convex) {
-        bool pos = false;
-        bool neg = false;
-        vec3 prev = extra[base + count - 1u].xyz;
-        for (uint k = 0u; k < count; k++) {
-            vec3 cur = extra[base + k].xyz;
+    // One loop for both tests (Rust keeps two; same arithmetic): llvmpipe
+    // 22.3 bug: all loops share a 65535-iteration budget per SIMD group
+    // (LP_MAX_TGSI_LOOP_ITERATIONS), and a loop no lane enters still costs
+    // one, so each extra loop here costs one per intersect() call.
+    bool pos = false;
+    bool neg = false;
+    bool inside = false;
+    vec3 prev = extra[base + count - 1u].xyz;
+    for (uint k = 0u; k < count; k++) {
+        vec3 cur = extra[base + k].xyz;
+        if (convex) {
             precise float ex = cur[i0] - prev[i0];
             precise float ey = cur[i1] - prev[i1];
             precise float e = ex * (py - prev[i1]) - ey * (px - prev[i0]);
             pos = pos || e > 0.0;
             neg = neg || e < 0.0;
-            prev = cur;
-        }
-        if (pos && neg) {
-            return false;
-        }
-        h = ph;
-        return true;
-    } else {
-        bool inside = false;
-        vec3 prev = extra[base + count - 1u].xyz;
-        for (uint k = 0u; k < count; k++) {
-            vec3 cur = extra[base + k].xyz;
+        } else {
             float ay = prev[i1];
             float by = cur[i1];
             if ((ay > py) != (by > py)) {
@@ -213,14 +207,14 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
                     inside = !inside;
                 }
             }
-            prev = cur;
         }
-        if (inside) {
-            h = ph;
-            return true;
-        }
-        return false;
+        prev = cur;
     }
+    if (convex ? !(pos && neg) : inside) {
+        h = ph;
+        return true;
+    }
+    return false;
 }
 
 // Slabs. A ray parallel to a slab pair misses unless its origin lies
