@@ -209,6 +209,14 @@ bool seen_before(Prim prim, Dda dda) {
 // changes a result; reset per invocation (shadow_cache_reset).
 uint shadow_cache[SHADOW_CACHE_LIGHTS];
 
+// lavapipe (llvmpipe 22.3) gives each SIMD group of invocations a budget
+// of 65535 loop iterations for the whole shader, then silently runs every
+// loop once (LP_MAX_TGSI_LOOP_ITERATIONS). Each loop below that ends
+// without reaching its own end counts here; render.comp adds them up and
+// the host refuses an image in which any loop was cut. (GPU only: the CPU
+// has no such budget.)
+uint loops_cut = 0u;
+
 void shadow_cache_reset() {
     for (uint i = 0u; i < SHADOW_CACHE_LIGHTS; i++) {
         shadow_cache[i] = 0u;
@@ -249,6 +257,7 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
         return found;
     }
     uint max_cells = dda_max_cells();
+    bool ended = false;
     for (uint visited = 0u; visited < max_cells; visited++) {
         uint ci = cell_index(dda.cell);
         uint start = cell_start[ci];
@@ -258,13 +267,15 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
             int jaxis;
             float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
             if (best_t <= t_jump || t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
+                ended = true;
                 break;
             }
             continue;
         }
         int axis;
         float t_exit = dda_exit(dda, axis);
-        for (uint k = start; k < end; k++) {
+        uint k = start;
+        for (; k < end; k++) {
             uint r = refs[k];
             Prim prim = prims[r];
             if (seen_before(prim, dda)) {
@@ -278,9 +289,16 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
                 found = true;
             }
         }
+        if (k != end) {
+            loops_cut += 1u;
+        }
         if (best_t <= t_exit || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
+            ended = true;
             break;
         }
+    }
+    if (!ended) {
+        loops_cut += 1u;
     }
     return found;
 }
@@ -313,6 +331,7 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     Dda dda;
     if (!blocked && dda_setup(ray, pre, dist, dda)) {
         uint max_cells = dda_max_cells();
+        bool ended = false;
         for (uint visited = 0u; visited < max_cells; visited++) {
             uint ci = cell_index(dda.cell);
             uint start = cell_start[ci];
@@ -322,13 +341,15 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
                 int jaxis;
                 float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
                 if (t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
+                    ended = true;
                     break;
                 }
                 continue;
             }
             int axis;
             float t_exit = dda_exit(dda, axis);
-            for (uint k = start; k < end; k++) {
+            uint k = start;
+            for (; k < end; k++) {
                 uint r = refs[k];
                 Prim prim = prims[r];
                 if (seen_before(prim, dda)) {
@@ -347,9 +368,16 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
                     }
                 }
             }
+            if (!blocked && k != end) {
+                loops_cut += 1u;
+            }
             if (blocked || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
+                ended = true;
                 break;
             }
+        }
+        if (!ended) {
+            loops_cut += 1u;
         }
     }
     return blocked ? vec3(0.0) : trans;

@@ -19,8 +19,9 @@ layout(local_size_x = 8, local_size_y = 8, local_size_x_id = 0, local_size_y_id 
 
 // One vec4 per lattice point (rgb, w = 1), index y * lattice_width + x.
 layout(set = 0, binding = 7, std430) writeonly buffer Out { vec4 samples[]; };
-// [0] eye, [1] eye_hit, [2] reflect, [3] refract, [4] shadow; the host
-// zeroes and reads them per tile.
+// [0] eye, [1] eye_hit, [2] reflect, [3] refract, [4] shadow, [5] loops
+// the device cut short (grid.glsl: loops_cut); the host zeroes and reads
+// them per tile.
 layout(set = 0, binding = 8, std430) buffer Counters { uint counts[8]; };
 
 // tile.xy: lattice origin of this tile; tile.zw: its width and height.
@@ -70,11 +71,13 @@ void main() {
     uint reflect_ = subgroupAdd(stats.reflect);
     uint refract_ = subgroupAdd(stats.refract);
     uint shadow = subgroupAdd(stats.shadow);
+    uint cut = subgroupAdd(loops_cut);
     if (subgroupElect()) {
         atomicAdd(counts[0], eye);
         atomicAdd(counts[1], eye_hit);
         atomicAdd(counts[2], reflect_);
         atomicAdd(counts[3], refract_);
         atomicAdd(counts[4], shadow);
+        atomicAdd(counts[5], cut);
     }
 }

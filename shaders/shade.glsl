@@ -47,7 +47,8 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
     float ksr = mat.ks.x;
     float kst = mat.ks.z;
     bool highlight_t = HAS_TRANSMIT_HIGHLIGHT && has(FEAT_TRANSMIT_HIGHLIGHT) && kst > 0.0;
-    for (uint li_ = 0u; li_ < g.counts.z; li_++) {
+    uint li_ = 0u;
+    for (; li_ < g.counts.z; li_++) {
         Light light = lights[li_];
         precise vec3 lv = light.pos.xyz - p;
         precise float dist = length3(lv);
@@ -103,6 +104,9 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
             }
         }
         c = c + li * term;
+    }
+    if (li_ != g.counts.z) {
+        loops_cut += 1u;
     }
     return c;
 }

@@ -98,6 +98,9 @@ vec3 trace_ray(Ray ray) {
             }
         }
     }
+    if (sp > 0u) {
+        loops_cut += 1u;
+    }
     return color;
 }
 

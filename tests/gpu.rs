@@ -601,3 +601,38 @@ fn cli_without_a_vulkan_driver() {
     assert!(o.status.success());
     assert!(String::from_utf8_lossy(&o.stdout).contains("no Vulkan device"));
 }
+
+/// llvmpipe stops every shader loop of a group of invocations after 65535
+/// iterations in all. A scene that needs more (here 20 000 lights, one
+/// feeler each) must be refused with a clear error on llvmpipe, never
+/// rendered wrong; any other device must render it like the CPU.
+#[test]
+fn a_cut_loop_is_an_error_not_a_wrong_image() {
+    let Some(g) = common::gpu() else { return };
+    let mut text = String::from(
+        "[camera]\nfrom = [0, -5, 0]\nat = [0, 0, 0]\n\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
+    );
+    for i in 0..20_000 {
+        let a = i as f64 * 0.0003;
+        text.push_str(&format!(
+            "\n[[light]]\nposition = [{}, -6, {}]\ncolor = 0.00005\n",
+            10.0 * a.cos(),
+            10.0 * a.sin()
+        ));
+    }
+    let p = common::parse(&text, &common::small(8, 8));
+    let r = g.render(&p, &GpuOptions::default(), &|_, _| {});
+    common::assert_no_validation_errors();
+    if g.info().driver.to_lowercase().contains("llvmpipe") {
+        let e = r.expect_err("llvmpipe cannot run 20 000 lights in one invocation");
+        assert!(
+            matches!(e, GpuError::LoopsCut { .. }) && e.is_user_error(),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("--backend cpu"), "{e}");
+    } else {
+        let gf = r.unwrap_or_else(|e| panic!("{e}"));
+        let cf = whitted::cpu::render(&p, &|_, _| {});
+        assert_eq!(gf.stats, cf.stats);
+    }
+}

@@ -54,6 +54,14 @@ pub enum GpuError {
     Memory { what: String, msg: String },
     #[error("internal error: {0}")]
     Internal(String),
+    /// The driver stopped shader loops early (llvmpipe's per-shader loop
+    /// budget of 65535 iterations): the image would be silently wrong.
+    #[error(
+        "{device} cut {loops} shader loops short (llvmpipe stops every loop after 65535 iterations \
+         per group of invocations), so this image would be wrong; use --backend cpu, fewer lights, \
+         a smaller --max-depth or a smaller --workgroup"
+    )]
+    LoopsCut { device: String, loops: u32 },
 }
 
 impl GpuError {
@@ -67,6 +75,7 @@ impl GpuError {
                 | GpuError::Unusable(_)
                 | GpuError::Limits(_)
                 | GpuError::Memory { .. }
+                | GpuError::LoopsCut { .. }
         )
     }
 }
@@ -391,6 +400,12 @@ impl Gpu {
                 )
             })?;
             let c: [u32; 8] = bytemuck::pod_read_unaligned(counters.read(32)?);
+            if c[5] > 0 {
+                return Err(GpuError::LoopsCut {
+                    device: self.info().name.clone(),
+                    loops: c[5],
+                });
+            }
             stats.add(&RayStats {
                 eye: c[0] as u64,
                 eye_hit: c[1] as u64,
