@@ -476,7 +476,7 @@ fn cpu_probe(p: &Packed, mode: ProbeMode, it: &ProbeItem) -> ProbeResult {
     match mode {
         ProbeMode::Intersect => {
             let r = ray(it);
-            let pre = RayPre::new(r.d);
+            let pre = RayPre::new(r.d, true);
             let prim = &p.prims[it.u[0] as usize];
             if let Some(h) = intersect(prim, &p.extra, &r, &pre, it.o[3]) {
                 res.a = [1.0, h.t, h.u, h.v];
@@ -489,7 +489,7 @@ fn cpu_probe(p: &Packed, mode: ProbeMode, it: &ProbeItem) -> ProbeResult {
         }
         ProbeMode::Closest => {
             let r = ray(it);
-            let pre = RayPre::new(r.d);
+            let pre = RayPre::new(r.d, true);
             res.u[0] = u32::MAX;
             if let Some((h, pi)) = closest_hit(&s, &r, &pre, it.o[3], &mut work) {
                 res.a = [1.0, h.t, h.u, h.v];
@@ -498,7 +498,7 @@ fn cpu_probe(p: &Packed, mode: ProbeMode, it: &ProbeItem) -> ProbeResult {
         }
         ProbeMode::Transmittance => {
             let r = ray(it);
-            let pre = RayPre::new(r.d);
+            let pre = RayPre::new(r.d, true);
             let t = transmittance(&s, &r, &pre, it.o[3], usize::MAX, &mut work);
             res.a = [t.x, t.y, t.z, 0.0];
         }

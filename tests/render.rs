@@ -301,7 +301,7 @@ proptest! {
             prop_assume!(d.length() > 1e-3);
             let d = d.normalize();
             let ray = Ray { o: v3(o[0], o[1], o[2]), d };
-            let pre = RayPre::new(d);
+            let pre = RayPre::new(d, true);
             let mut work = Work::default();
             let g = closest_hit(&view, &ray, &pre, f32::INFINITY, &mut work);
             let b = closest_hit_brute(&view, &ray, &pre, f32::INFINITY);

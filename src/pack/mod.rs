@@ -347,6 +347,29 @@ impl Builder {
     }
 }
 
+/// Most primitives kept out of the grid for being as large as the scene.
+pub const GIANTS_MAX: usize = 8;
+
+/// A few primitives as large as the whole scene (a floor polygon under a
+/// small object, a box round the room) would stretch the grid over empty
+/// space and sit in most of its cells: the SPD's balls put 7 381 spheres
+/// in a 74×74×4 grid because of a 24×24 floor. Up to `GIANTS_MAX` finite
+/// primitives that span at least half the scene's extent on some axis are
+/// instead tested against every ray, like planes; the grid then fits the
+/// rest. Which list a primitive is in never changes a hit.
+fn take_out_giants(bounded: &mut Vec<(Prim, Bounds)>, unbounded: &mut Vec<Prim>) {
+    let all = bounded.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
+    let e = all.extent();
+    let giant = |b: &Bounds| (0..3).any(|i| e[i] > 0.0 && b.hi[i] - b.lo[i] >= 0.5 * e[i]);
+    let count = bounded.iter().filter(|(_, b)| giant(b)).count();
+    if count == 0 || count > GIANTS_MAX || count == bounded.len() {
+        return;
+    }
+    let (giants, rest): (Vec<_>, Vec<_>) = bounded.drain(..).partition(|(_, b)| giant(b));
+    *bounded = rest;
+    unbounded.extend(giants.into_iter().map(|(p, _)| p));
+}
+
 /// Spreads the low 10 bits of `v` to every third bit.
 fn spread3(v: u32) -> u64 {
     let mut x = (v & 1023) as u64;
@@ -458,7 +481,14 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
         })
         .collect();
 
+    // The scene's size (for the surface offset) counts every finite
+    // primitive, the ones kept out of the grid too.
+    let finite = b
+        .bounded
+        .iter()
+        .fold(Bounds::EMPTY, |a, (_, bb)| a.union(bb));
     let t0 = Instant::now();
+    take_out_giants(&mut b.bounded, &mut b.unbounded);
     morton_order(&mut b.bounded);
     let bounds: Vec<Bounds> = b.bounded.iter().map(|(_, bb)| *bb).collect();
     let g = grid::build(&bounds, settings.grid);
@@ -476,11 +506,10 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
     let up = right.cross(forward);
     let half_h = (cam.fov.to_radians() * 0.5).tan();
     let half_w = half_h * width as f64 / height as f64;
-    let all = bounds.iter().fold(Bounds::EMPTY, |a, b| a.union(b));
-    let scale = if bounds.is_empty() {
+    let scale = if finite.lo[0] > finite.hi[0] {
         (cam.at - cam.from).length()
     } else {
-        all.diagonal().max((cam.at - cam.from).length())
+        finite.diagonal().max((cam.at - cam.from).length())
     };
     let (nx, ny) = crate::trace::sample::strata(settings.spp);
     let sampling = match settings.sampling {
@@ -577,6 +606,60 @@ mod tests {
         let code = |x: u32, y: u32, z: u32| spread3(x) | spread3(y) << 1 | spread3(z) << 2;
         assert_eq!(code(1, 1, 1), 7);
         assert!(code(1, 0, 0) < code(0, 1, 0) && code(0, 1, 0) < code(0, 0, 1));
+    }
+
+    #[test]
+    fn a_floor_under_a_small_object_stays_out_of_the_grid() {
+        use crate::scene::{Camera, Light, Object, Scene};
+        let mut objects = vec![Object {
+            shape: Shape::Polygon {
+                vertices: vec![
+                    DVec3::new(-12.0, -12.0, 0.0),
+                    DVec3::new(12.0, -12.0, 0.0),
+                    DVec3::new(12.0, 12.0, 0.0),
+                    DVec3::new(-12.0, 12.0, 0.0),
+                ],
+            },
+            material: 0,
+        }];
+        for i in 0..100 {
+            objects.push(Object {
+                shape: Shape::Sphere {
+                    center: DVec3::new((i % 10) as f64 * 0.1, (i / 10) as f64 * 0.1, 0.5),
+                    radius: 0.04,
+                },
+                material: 0,
+            });
+        }
+        let s = Scene {
+            camera: Camera {
+                from: DVec3::new(0.0, -5.0, 1.0),
+                at: DVec3::ZERO,
+                up: DVec3::Z,
+                fov: 40.0,
+                width: 8,
+                height: 8,
+            },
+            background: DVec3::ZERO,
+            ambient: DVec3::ZERO,
+            lights: vec![Light {
+                position: DVec3::new(0.0, 0.0, 9.0),
+                color: DVec3::ONE,
+                falloff: [1.0, 0.0, 0.0],
+            }],
+            materials: vec![crate::scene::Material::default()],
+            objects,
+            source: "t".into(),
+        };
+        let p = pack(&s, &Settings::default());
+        assert_eq!(p.globals.counts[0], 100, "the spheres are in the grid");
+        assert_eq!(
+            p.globals.counts[1], 101,
+            "the floor is tested against every ray"
+        );
+        assert_eq!(p.prims[100].kind(), KIND_POLYGON);
+        // the grid fits the spheres, not the floor
+        assert!(p.globals.grid_max[0] - p.globals.grid_min[0] < 1.2);
     }
 
     #[test]

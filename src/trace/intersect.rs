@@ -31,7 +31,10 @@ pub struct RayPre<F> {
 }
 
 impl<F: Real> RayPre<F> {
-    pub fn new(d: V3<F>) -> Self {
+    /// `shear`: compute the triangle test's shear (only a scene with
+    /// triangles reads it; the shader's compiler drops it as dead code
+    /// when the triangle path is specialized out).
+    pub fn new(d: V3<F>, shear: bool) -> Self {
         let ad = d.map(|c| c.abs());
         let mut kz = 0;
         if ad.y > ad.x {
@@ -46,13 +49,18 @@ impl<F: Real> RayPre<F> {
             std::mem::swap(&mut kx, &mut ky);
         }
         let dz = d.get(kz);
+        let (sx, sy, sz) = if shear {
+            (d.get(kx) / dz, d.get(ky) / dz, F::one() / dz)
+        } else {
+            (F::zero(), F::zero(), F::zero())
+        };
         RayPre {
             kx,
             ky,
             kz,
-            sx: d.get(kx) / dz,
-            sy: d.get(ky) / dz,
-            sz: F::one() / dz,
+            sx,
+            sy,
+            sz,
             inv_d: v3(F::one() / d.x, F::one() / d.y, F::one() / d.z),
         }
     }
@@ -508,7 +516,7 @@ mod tests {
                 o: v3(o[0], o[1], o[2]),
                 d,
             },
-            RayPre::new(d),
+            RayPre::new(d, true),
         )
     }
 

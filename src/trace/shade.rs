@@ -67,7 +67,7 @@ pub fn shade<F: Real>(
             p - ngf * eps
         };
         let sray = Ray { o, d: l };
-        let pre = RayPre::new(l);
+        let pre = RayPre::new(l, s.has(FEAT_TRIANGLE));
         let tr = transmittance(s, &sray, &pre, dist, li_index, work);
         if tr.max_elem() <= F::zero() {
             continue;

@@ -52,7 +52,7 @@ pub fn trace_ray<F: Real>(
         sp -= 1;
         let e = stack[sp];
         let r = Ray { o: e.o, d: e.d };
-        let pre = RayPre::new(e.d);
+        let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
         let Some((h, pi)) = closest_hit(s, &r, &pre, F::infinity(), work) else {
             // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
             if e.medium.max_elem() <= F::zero() {
