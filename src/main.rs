@@ -492,7 +492,7 @@ fn auto_reason(devices: &[gpu::DeviceInfo]) -> String {
     if let Some(d) = cpu.first() {
         return format!(
             "the only Vulkan device is {} (a CPU device: lavapipe is for validation, \
-             about 3x slower than the mirror on divergent rays); --backend gpu uses it anyway",
+             5 to 10x slower than the mirror here, see BENCHMARKS.md); --backend gpu uses it anyway",
             d.name
         );
     }
