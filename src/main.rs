@@ -317,7 +317,6 @@ fn render(a: RenderArgs) -> Result<()> {
     let started = Instant::now();
     let progress = |done: u64, total: u64| {
         if !quiet && bar.is_hidden() && started.elapsed().as_secs_f64() > 1.0 {
-            bar.set_length(total);
             bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         }
         bar.set_length(total);
@@ -679,21 +678,7 @@ fn validate(a: ValidateArgs) -> Result<bool> {
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).with_context(|| {
-        format!(
-            "{}: cannot create a file in {}",
-            path.display(),
-            dir.display()
-        )
-    })?;
-    std::io::Write::write_all(&mut tmp, bytes)?;
-    tmp.persist(path)
-        .with_context(|| format!("{}: cannot write", path.display()))?;
-    Ok(())
+    output::write_atomically(path, |w| Ok(std::io::Write::write_all(w, bytes)?))
 }
 
 fn main() -> ExitCode {

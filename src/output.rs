@@ -69,9 +69,13 @@ pub fn format_of(path: &Path) -> Result<Format> {
     })
 }
 
-/// Writes `f` to `path` atomically.
-pub fn write(f: &Frame, path: &Path, enc: Encoding) -> Result<()> {
-    let format = format_of(path)?;
+/// Writes `path` atomically: `body` fills a temporary file beside it, which
+/// is renamed over `path` only when `body` succeeds, so a failure never
+/// leaves half a file.
+pub fn write_atomically(
+    path: &Path,
+    body: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> Result<()>,
+) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -88,9 +92,21 @@ pub fn write(f: &Frame, path: &Path, enc: Encoding) -> Result<()> {
         })?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file());
+        body(&mut w)?;
+        std::io::Write::flush(&mut w)?;
+    }
+    tmp.persist(path)
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    Ok(())
+}
+
+/// Writes `f` to `path` atomically.
+pub fn write(f: &Frame, path: &Path, enc: Encoding) -> Result<()> {
+    let format = format_of(path)?;
+    write_atomically(path, |w| {
         match format {
             Format::Png => to_rgb8(f, enc)
-                .write_to(&mut w, image::ImageFormat::Png)
+                .write_to(w, image::ImageFormat::Png)
                 .with_context(|| format!("{}: cannot encode PNG", path.display()))?,
             Format::Exr | Format::Hdr => {
                 let data: Vec<f32> = f.pixels.iter().flatten().copied().collect();
@@ -102,15 +118,12 @@ pub fn write(f: &Frame, path: &Path, enc: Encoding) -> Result<()> {
                     image::ImageFormat::Hdr
                 };
                 image::DynamicImage::ImageRgb32F(img)
-                    .write_to(&mut w, fmt)
+                    .write_to(w, fmt)
                     .with_context(|| format!("{}: cannot encode image", path.display()))?;
             }
         }
-        std::io::Write::flush(&mut w)?;
-    }
-    tmp.persist(path)
-        .with_context(|| format!("{}: cannot write", path.display()))?;
-    Ok(())
+        Ok(())
+    })
 }
 
 #[cfg(test)]

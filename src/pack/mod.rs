@@ -78,15 +78,6 @@ impl Packed {
     pub fn height(&self) -> u32 {
         self.globals.image[1]
     }
-    /// Bytes of all arrays (what a device must hold).
-    pub fn bytes(&self) -> usize {
-        std::mem::size_of::<Globals>()
-            + self.prims.len() * 64
-            + self.extra.len() * 16
-            + self.materials.len() * 96
-            + self.lights.len() * 48
-            + (self.cell_start.len() + self.refs.len()) * 4
-    }
 }
 
 fn v4(v: DVec3, w: f64) -> [f32; 4] {
@@ -357,8 +348,7 @@ pub const GIANTS_MAX: usize = 8;
 /// primitives that span at least half the scene's extent on some axis are
 /// instead tested against every ray, like planes; the grid then fits the
 /// rest. Which list a primitive is in never changes a hit.
-fn take_out_giants(bounded: &mut Vec<(Prim, Bounds)>, unbounded: &mut Vec<Prim>) {
-    let all = bounded.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
+fn take_out_giants(all: &Bounds, bounded: &mut Vec<(Prim, Bounds)>, unbounded: &mut Vec<Prim>) {
     let e = all.extent();
     let giant = |b: &Bounds| (0..3).any(|i| e[i] > 0.0 && b.hi[i] - b.lo[i] >= 0.5 * e[i]);
     let count = bounded.iter().filter(|(_, b)| giant(b)).count();
@@ -488,7 +478,7 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
         .iter()
         .fold(Bounds::EMPTY, |a, (_, bb)| a.union(bb));
     let t0 = Instant::now();
-    take_out_giants(&mut b.bounded, &mut b.unbounded);
+    take_out_giants(&finite, &mut b.bounded, &mut b.unbounded);
     morton_order(&mut b.bounded);
     let bounds: Vec<Bounds> = b.bounded.iter().map(|(_, bb)| *bb).collect();
     let g = grid::build(&bounds, settings.grid);
