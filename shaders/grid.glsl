@@ -80,9 +80,9 @@ bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
     for (int i = 0; i < 3; i++) {
         int n = int(g.grid_dims[i]);
         precise float p = o[i] + d[i] * t0;
-        precise float c = floor((p - g.grid_min[i]) / g.grid_cell[i]);
-        // Rust: NaN → 0, else a saturating `as i32`, then clamp(0, n − 1);
-        // the same without ever converting an out-of-range float.
+        precise float c = (p - g.grid_min[i]) / g.grid_cell[i];
+        // floor, then clamp to 0..n − 1, without ever converting an
+        // out-of-range float: on the positive values left, int() is floor.
         int ci;
         if (isnan(c) || c <= 0.0) {
             ci = 0;

@@ -370,7 +370,7 @@ fn over_the_device_limits_is_a_clear_error() {
         &common::small(8, 8),
     );
     // A refs array one element over maxStorageBufferRange (calloc'd: cheap).
-    p.refs = vec![0u32; (range / 4 + 1) as usize];
+    p.refs = vec![0u32; (range / 4 + 1) as usize].into();
     let e = g
         .render(&p, &GpuOptions::default(), &|_, _| {})
         .unwrap_err();

@@ -56,7 +56,11 @@ pub struct Globals {
 /// | box      | min                | max                     |                     |                 |
 /// | quadric  | clip min, clipped  | clip max                |                     | 3 vec4 coefficients in extra |
 /// | cone     | base, base radius  | unit axis, apex radius  | length, side (±1)   |                 |
-#[repr(C)]
+///
+/// Aligned to 64 bytes (its size, so the std430 layout is unchanged): a
+/// large malloc'd array starts 16 bytes into a page, which made every
+/// primitive straddle two cache lines.
+#[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Prim {
     pub kind_mat: u32,
@@ -125,6 +129,8 @@ mod tests {
         assert_eq!(offset_of!(Globals, grid_dims), 8 * 16);
         assert_eq!(offset_of!(Globals, params), 12 * 16);
         assert_eq!(size_of::<Prim>(), 64);
+        // One cache line each (see Prim).
+        assert_eq!(std::mem::align_of::<Prim>(), 64);
         assert_eq!(offset_of!(Prim, a), 16);
         assert_eq!(offset_of!(Prim, c), 48);
         assert_eq!(size_of::<Material>(), 96);

@@ -3,12 +3,14 @@
 
 pub mod grid;
 pub mod layout;
+pub mod pages;
 
 use crate::constants::*;
 use crate::scene::{Scene, Shape};
 use glam::DVec3;
 use grid::Bounds;
 use layout::{Globals, Light, Material, Prim};
+pub use pages::Pages;
 use std::time::Instant;
 
 /// How eye rays sample a pixel.
@@ -62,12 +64,12 @@ pub struct GridInfo {
 pub struct Packed {
     pub globals: Globals,
     /// Grid primitives first (`globals.counts.x` of them), then unbounded ones.
-    pub prims: Vec<Prim>,
-    pub extra: Vec<[f32; 4]>,
+    pub prims: Pages<Prim>,
+    pub extra: Pages<[f32; 4]>,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
-    pub cell_start: Vec<u32>,
-    pub refs: Vec<u32>,
+    pub cell_start: Pages<u32>,
+    pub refs: Pages<u32>,
     pub grid: GridInfo,
 }
 
@@ -546,12 +548,12 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
     };
     Packed {
         globals,
-        prims,
-        extra: b.extra,
+        prims: prims.into(),
+        extra: b.extra.into(),
         materials,
         lights,
-        cell_start: g.cell_start,
-        refs: g.refs,
+        cell_start: g.cell_start.into(),
+        refs: g.refs.into(),
         grid: grid_info,
     }
 }

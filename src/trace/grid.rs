@@ -88,9 +88,16 @@ pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
     for i in 0..3 {
         let n = g.grid_dims[i] as i32;
         let p = o[i] + d[i] * t0;
-        let c = ((p - F::of(g.grid_min[i])) / F::of(g.grid_cell[i])).floor();
-        let c = if c.is_nan() { 0 } else { c.to_f32() as i32 };
-        dda.cell[i] = c.clamp(0, n - 1);
+        // floor, then clamp to 0..n − 1: on the positive values left after
+        // the clamp, truncation is floor (no libm call without SSE4.1).
+        let q = (p - F::of(g.grid_min[i])) / F::of(g.grid_cell[i]);
+        dda.cell[i] = if q.is_nan() || q <= F::zero() {
+            0
+        } else if q >= F::of((n - 1) as f32) {
+            n - 1
+        } else {
+            q.trunc_i32()
+        };
         dda.step[i] = if d[i] > F::zero() {
             1
         } else if d[i] < F::zero() {

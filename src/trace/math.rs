@@ -12,6 +12,9 @@ use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub};
 pub trait Real: Float + Debug + Default + Send + Sync + 'static {
     fn of(x: f32) -> Self;
     fn to_f32(self) -> f32;
+    /// Truncation towards zero (saturating): the GLSL `int(x)` on the
+    /// values the tracer converts.
+    fn trunc_i32(self) -> i32;
 }
 
 impl Real for f32 {
@@ -23,6 +26,10 @@ impl Real for f32 {
     fn to_f32(self) -> f32 {
         self
     }
+    #[inline(always)]
+    fn trunc_i32(self) -> i32 {
+        self as i32
+    }
 }
 
 impl Real for f64 {
@@ -33,6 +40,10 @@ impl Real for f64 {
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32
+    }
+    #[inline(always)]
+    fn trunc_i32(self) -> i32 {
+        self as i32
     }
 }
 
