@@ -25,7 +25,12 @@ layout(set = 0, binding = 7, std430) writeonly buffer Out { vec4 samples[]; };
 layout(set = 0, binding = 8, std430) buffer Counters { uint counts[8]; };
 
 // tile.xy: lattice origin of this tile; tile.zw: its width and height.
-layout(push_constant) uniform Push { uvec4 tile; };
+// order.x: the workgroup order's stride (src/gpu/dispatch.rs,
+// scatter_stride; 1: plain order).
+layout(push_constant) uniform Push {
+    uvec4 tile;
+    uvec4 order;
+};
 
 // One eye ray through image position (x, y); counts it.
 vec3 trace_sample(float x, float y) {
@@ -49,7 +54,13 @@ vec3 render_pixel(uint px, uint py) {
 }
 
 void main() {
-    uvec2 gid = gl_GlobalInvocationID.xy;
+    // Workgroup k of the dispatch renders group (k · stride) mod n of the
+    // tile: a permutation, since the stride is coprime to n.
+    uvec2 ng = gl_NumWorkGroups.xy;
+    uint n = ng.x * ng.y;
+    uint k = gl_WorkGroupID.y * ng.x + gl_WorkGroupID.x;
+    uint p = (k * order.x) % n;
+    uvec2 gid = uvec2(p % ng.x, p / ng.x) * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy;
     shadow_cache_reset();
     bool corners = g.image.w == SAMPLING_CORNERS;
     uint lw = corners ? g.image.x + 1u : g.image.x;

@@ -246,9 +246,58 @@ pub fn tiles(lw: u32, lh: u32, tile: u32, spp: u32, max_samples: u64) -> Vec<Til
     out
 }
 
+/// The order in which a dispatch of `n` workgroups visits its tile:
+/// workgroup k (in the order the driver hands them out) renders group
+/// (k · stride) mod n. A CPU driver (lavapipe) gives each of its threads
+/// one contiguous block of workgroups, so in plain order one thread gets
+/// the sky and idles while another gets the objects; a stride near the
+/// golden section of n spreads every block over the whole tile. The
+/// stride is coprime to n (so the map is a permutation) and at most
+/// 65 535 (so the shader's 32-bit product cannot wrap); 1 is the plain
+/// order, which a GPU's own scheduler needs no help with.
+pub fn scatter_stride(n: u32) -> u32 {
+    if n <= 2 || n > 65_536 {
+        return 1;
+    }
+    let mut s = ((n as f64 * 0.618_033_988_75) as u32).max(1);
+    while gcd(s, n) != 1 {
+        s += 1;
+    }
+    s
+}
+
+fn gcd(mut a: u32, mut b: u32) -> u32 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scatter_is_a_permutation_that_spreads_each_half() {
+        for n in (1..=600).chain([1024, 4096, 65_535, 65_536, 65_537, 1 << 20]) {
+            let s = scatter_stride(n);
+            let mut seen = vec![false; n as usize];
+            for k in 0..n as u64 {
+                let p = (k * s as u64 % n as u64) as usize;
+                assert!(!seen[p], "n {n} stride {s}: {p} twice");
+                seen[p] = true;
+                // What the shader computes must not wrap in 32 bits.
+                assert!(k * (s as u64) < 1 << 32 || s == 1);
+            }
+            if (64..=65_536).contains(&n) {
+                // The first half of the workgroups covers both halves of
+                // the tile about equally.
+                let low = (0..n / 2).filter(|&k| (k as u64 * s as u64 % n as u64) < n as u64 / 2);
+                let frac = low.count() as f64 / (n / 2) as f64;
+                assert!((0.35..0.65).contains(&frac), "n {n} stride {s}: {frac}");
+            }
+        }
+    }
 
     #[test]
     fn tiles_cover_the_lattice_once() {

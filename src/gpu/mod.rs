@@ -199,6 +199,7 @@ impl Gpu {
         name: &'static str,
         spirv: &[u8],
         bindings: &[u32],
+        push_size: u32,
         spec: &[(u32, u32)],
     ) -> Result<Arc<Kernel>, GpuError> {
         let mut key = [0u32; 3];
@@ -209,7 +210,9 @@ impl Gpu {
         if let Some(k) = map.get(&(name, key)) {
             return Ok(k.clone());
         }
-        let k = Arc::new(Kernel::new(&self.ctx, name, spirv, bindings, 16, spec)?);
+        let k = Arc::new(Kernel::new(
+            &self.ctx, name, spirv, bindings, push_size, spec,
+        )?);
         map.insert((name, key), k.clone());
         Ok(k)
     }
@@ -348,6 +351,7 @@ impl Gpu {
             name,
             spirv,
             &[0, 1, 2, 3, 4, 5, 6, 7, 8],
+            32,
             &[
                 (0, opts.workgroup[0]),
                 (1, opts.workgroup[1]),
@@ -375,7 +379,7 @@ impl Gpu {
                     d,
                     cmd,
                     &kernel,
-                    bytemuck::bytes_of(&[0u32; 4]),
+                    bytemuck::bytes_of(&[0u32; 8]),
                     [1, 1, 1],
                     Some(&counters),
                 )
@@ -387,15 +391,24 @@ impl Gpu {
         let mut stats = RayStats::default();
         let mut device_seconds: Option<f64> = None;
         let [wx, wy] = opts.workgroup;
+        // A CPU driver's threads take contiguous blocks of workgroups:
+        // scatter them (dispatch::scatter_stride).
+        let scatter = self.info().kind == DeviceKind::Cpu;
         for (k, t) in tiles.iter().enumerate() {
-            let push: [u32; 4] = [t.x0, t.y0, t.w, t.h];
+            let groups = [t.w.div_ceil(wx), t.h.div_ceil(wy), 1];
+            let stride = if scatter {
+                dispatch::scatter_stride(groups[0] * groups[1])
+            } else {
+                1
+            };
+            let push: [u32; 8] = [t.x0, t.y0, t.w, t.h, stride, 0, 0, 0];
             cmds.run_once(|d, cmd| {
                 cmds.record_dispatch(
                     d,
                     cmd,
                     &kernel,
                     bytemuck::bytes_of(&push),
-                    [t.w.div_ceil(wx), t.h.div_ceil(wy), 1],
+                    groups,
                     Some(&counters),
                 )
             })?;
@@ -465,7 +478,7 @@ impl Gpu {
         }
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         self.check_fits(packed, 0)?;
-        let kernel = self.kernel(name, spirv, &[0, 1, 2, 3, 4, 5, 6, 9, 10], &[])?;
+        let kernel = self.kernel(name, spirv, &[0, 1, 2, 3, 4, 5, 6, 9, 10], 16, &[])?;
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed)?;
         let input = Buffer::host_input(&self.ctx, "probe items", bytemuck::cast_slice(items))?;
