@@ -418,6 +418,7 @@ fn gpu_options(g: &GpuArgs) -> GpuOptions {
         real_gpu_only: false,
         tile: g.tile,
         workgroup: g.workgroup,
+        staging: false,
     }
 }
 

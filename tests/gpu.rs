@@ -314,7 +314,8 @@ fn corner_and_jittered_sampling_match() {
     }
 }
 
-/// Tiles, workgroup shapes and the counters' per-tile readback are
+/// Tiles, workgroup shapes (and lavapipe's scattered workgroup order
+/// with them), staged uploads and the counters' per-tile readback are
 /// plumbing: they must not change a single bit or ray.
 #[test]
 fn tiles_and_workgroups_do_not_change_the_image() {
@@ -327,7 +328,14 @@ fn tiles_and_workgroups_do_not_change_the_image() {
     );
     let Some(g) = common::gpu() else { return };
     let base = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap();
-    for (tile, wg) in [(7, [3, 5]), (16, [16, 4]), (5, [1, 1]), (1000, [32, 2])] {
+    for (tile, wg, staging) in [
+        (7, [3, 5], false),
+        (16, [16, 4], false),
+        (5, [1, 1], false),
+        (1000, [32, 2], false),
+        // The upload a discrete GPU makes: through staging buffers.
+        (64, [8, 8], true),
+    ] {
         let calls = std::sync::atomic::AtomicU64::new(0);
         let f = g
             .render(
@@ -335,6 +343,7 @@ fn tiles_and_workgroups_do_not_change_the_image() {
                 &GpuOptions {
                     tile,
                     workgroup: wg,
+                    staging,
                     ..Default::default()
                 },
                 &|_, _| {
@@ -351,9 +360,12 @@ fn tiles_and_workgroups_do_not_change_the_image() {
         };
         assert!(
             bits(&f) == bits(&base),
-            "tile {tile}, workgroup {wg:?} changed the image"
+            "tile {tile}, workgroup {wg:?}, staging {staging} changed the image"
         );
-        assert_eq!(f.stats, base.stats, "tile {tile}, workgroup {wg:?}");
+        assert_eq!(
+            f.stats, base.stats,
+            "tile {tile}, workgroup {wg:?}, staging {staging}"
+        );
         let tiles = 51u64.div_ceil(tile as u64) * 38u64.div_ceil(tile as u64);
         assert_eq!(calls.into_inner(), tiles, "one progress call per tile");
         assert!(f.device_seconds.is_none() || f.device_seconds.unwrap() > 0.0);

@@ -120,12 +120,14 @@ impl Buffer {
 
     /// A device-local storage buffer holding `data`: written in place when
     /// the memory is host-visible (integrated GPUs, lavapipe, resizable
-    /// BAR), copied from a staging buffer otherwise.
+    /// BAR), copied from a staging buffer otherwise, or always with
+    /// `staged` (so that lavapipe tests the path discrete GPUs take).
     pub fn upload(
         ctx: &Arc<Context>,
         cmds: &Commands,
         name: &str,
         data: &[u8],
+        staged: bool,
     ) -> Result<Self, GpuError> {
         let mut buf = Buffer::new(
             ctx,
@@ -134,9 +136,11 @@ impl Buffer {
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuOnly,
         )?;
-        if let Some(s) = buf.coherent_slice_mut() {
-            s[..data.len()].copy_from_slice(data);
-            return Ok(buf);
+        if !staged {
+            if let Some(s) = buf.coherent_slice_mut() {
+                s[..data.len()].copy_from_slice(data);
+                return Ok(buf);
+            }
         }
         if data.is_empty() {
             return Ok(buf);

@@ -104,6 +104,10 @@ pub struct GpuOptions {
     pub tile: u32,
     /// Workgroup width and height.
     pub workgroup: [u32; 2],
+    /// Upload the scene through a staging buffer even where device-local
+    /// memory is host-visible: the path a discrete GPU takes, tested on
+    /// lavapipe (whose memory is all host-visible).
+    pub staging: bool,
 }
 
 impl Default for GpuOptions {
@@ -113,6 +117,7 @@ impl Default for GpuOptions {
             real_gpu_only: false,
             tile: DEFAULT_TILE,
             workgroup: DEFAULT_WORKGROUP,
+            staging: false,
         }
     }
 }
@@ -274,8 +279,13 @@ impl Gpu {
         Ok(())
     }
 
-    fn upload_scene(&self, cmds: &Commands, p: &Packed) -> Result<SceneBuffers, GpuError> {
-        let b = |name: &str, bytes: &[u8]| Buffer::upload(&self.ctx, cmds, name, bytes);
+    fn upload_scene(
+        &self,
+        cmds: &Commands,
+        p: &Packed,
+        staged: bool,
+    ) -> Result<SceneBuffers, GpuError> {
+        let b = |name: &str, bytes: &[u8]| Buffer::upload(&self.ctx, cmds, name, bytes, staged);
         Ok(SceneBuffers {
             bufs: vec![
                 b("globals", bytemuck::bytes_of(&p.globals))?,
@@ -359,7 +369,7 @@ impl Gpu {
             ],
         )?;
         let cmds = Commands::new(&self.ctx)?;
-        let scene = self.upload_scene(&cmds, packed)?;
+        let scene = self.upload_scene(&cmds, packed, opts.staging)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
         let counters = Buffer::readback(&self.ctx, "counters", 32)?;
         let mut binds = scene.bindings();
@@ -480,7 +490,7 @@ impl Gpu {
         self.check_fits(packed, 0)?;
         let kernel = self.kernel(name, spirv, &[0, 1, 2, 3, 4, 5, 6, 9, 10], 16, &[])?;
         let cmds = Commands::new(&self.ctx)?;
-        let scene = self.upload_scene(&cmds, packed)?;
+        let scene = self.upload_scene(&cmds, packed, false)?;
         let input = Buffer::host_input(&self.ctx, "probe items", bytemuck::cast_slice(items))?;
         let out_len = std::mem::size_of_val(items);
         let output = Buffer::readback(&self.ctx, "probe results", out_len as u64)?;
