@@ -22,11 +22,15 @@ struct Tok<'a> {
     off: usize,
 }
 
-fn tokenize(text: &str) -> Vec<Tok<'_>> {
-    let mut toks = Vec::new();
+/// The token that starts at or after byte `*off` of `text`; moves `*off`
+/// past it. Tokens are read one at a time: an array of them would hold 14
+/// M tokens (336 MB) for an NFF of 1 M spheres.
+fn scan<'a>(text: &'a str, off: &mut usize) -> Option<Tok<'a>> {
+    let base = *off;
     let mut start: Option<usize> = None;
     let mut comment = false;
-    for (i, c) in text.char_indices() {
+    for (j, c) in text[base..].char_indices() {
+        let i = base + j;
         if comment {
             if c == '\n' {
                 comment = false;
@@ -34,8 +38,10 @@ fn tokenize(text: &str) -> Vec<Tok<'_>> {
             continue;
         }
         if c.is_whitespace() || c == '#' {
-            if let Some(s) = start.take() {
-                toks.push(Tok {
+            if let Some(s) = start {
+                // A `#` right after a token is read again: it starts a comment.
+                *off = i;
+                return Some(Tok {
                     s: &text[s..i],
                     off: s,
                 });
@@ -45,13 +51,11 @@ fn tokenize(text: &str) -> Vec<Tok<'_>> {
             start = Some(i);
         }
     }
-    if let Some(s) = start {
-        toks.push(Tok {
-            s: &text[s..],
-            off: s,
-        });
-    }
-    toks
+    *off = text.len();
+    start.map(|s| Tok {
+        s: &text[s..],
+        off: s,
+    })
 }
 
 fn parse_number(s: &str) -> Option<f64> {
@@ -71,8 +75,11 @@ pub(crate) fn light_intensity(n: usize) -> f64 {
 struct Parser<'a> {
     text: &'a str,
     path: &'a Path,
-    toks: Vec<Tok<'a>>,
-    pos: usize,
+    /// The token `peek` returns, where the scan goes on, and the last
+    /// token taken (an error at the end of the file points there).
+    ahead: Option<Tok<'a>>,
+    off: usize,
+    last: Option<Tok<'a>>,
 }
 
 #[derive(Default)]
@@ -93,22 +100,43 @@ impl<'a> Parser<'a> {
         r.map_err(|m| self.err(tok, m))
     }
 
+    fn new(text: &'a str, path: &'a Path) -> Self {
+        let mut off = 0;
+        let ahead = scan(text, &mut off);
+        Parser {
+            text,
+            path,
+            ahead,
+            off,
+            last: None,
+        }
+    }
+
     fn peek(&self) -> Option<Tok<'a>> {
-        self.toks.get(self.pos).copied()
+        self.ahead
+    }
+
+    /// Takes the token `peek` returned.
+    fn advance(&mut self) {
+        self.last = self.ahead;
+        self.ahead = scan(self.text, &mut self.off);
     }
 
     /// The next token; at the end of the file, an error at the last token.
-    fn next(&mut self, entity: &str, expected: &str) -> Result<Tok<'a>, SceneError> {
+    /// `expected` describes it, formatted only for an error.
+    fn next(&mut self, entity: &str, expected: &dyn Fn() -> String) -> Result<Tok<'a>, SceneError> {
         match self.peek() {
             Some(t) => {
-                self.pos += 1;
+                self.advance();
                 Ok(t)
             }
             None => {
-                let msg =
-                    format!("truncated `{entity}` entity at end of file: expected {expected}");
-                Err(match self.toks.last() {
-                    Some(&t) => self.err(t, msg),
+                let msg = format!(
+                    "truncated `{entity}` entity at end of file: expected {}",
+                    expected()
+                );
+                Err(match self.last {
+                    Some(t) => self.err(t, msg),
                     None => SceneError::at_offset(self.path, self.text, self.text.len(), msg),
                 })
             }
@@ -116,8 +144,19 @@ impl<'a> Parser<'a> {
     }
 
     fn num(&mut self, entity: &str, expected: &str) -> Result<(f64, Tok<'a>), SceneError> {
+        self.num_of(entity, &|| expected.to_string())
+    }
+
+    /// `num` with a description formatted only for an error (a 1 M-sphere
+    /// file reads 4 M numbers).
+    fn num_of(
+        &mut self,
+        entity: &str,
+        expected: &dyn Fn() -> String,
+    ) -> Result<(f64, Tok<'a>), SceneError> {
         let t = self.next(entity, expected)?;
         let Some(x) = parse_number(t.s) else {
+            let expected = expected();
             return Err(self.err(
                 t,
                 format!(
@@ -130,7 +169,8 @@ impl<'a> Parser<'a> {
             return Err(self.err(
                 t,
                 format!(
-                    "{expected} in `{entity}` entity must be a finite number, got `{}`",
+                    "{} in `{entity}` entity must be a finite number, got `{}`",
+                    expected(),
                     t.s
                 ),
             ));
@@ -139,16 +179,24 @@ impl<'a> Parser<'a> {
     }
 
     fn vec3(&mut self, entity: &str, what: &str) -> Result<(DVec3, Tok<'a>), SceneError> {
-        let (x, t) = self.num(entity, &format!("{what} x"))?;
-        let (y, _) = self.num(entity, &format!("{what} y"))?;
-        let (z, _) = self.num(entity, &format!("{what} z"))?;
+        self.vec3_of(entity, &|| what.to_string())
+    }
+
+    fn vec3_of(
+        &mut self,
+        entity: &str,
+        what: &dyn Fn() -> String,
+    ) -> Result<(DVec3, Tok<'a>), SceneError> {
+        let (x, t) = self.num_of(entity, &|| format!("{} x", what()))?;
+        let (y, _) = self.num_of(entity, &|| format!("{} y", what()))?;
+        let (z, _) = self.num_of(entity, &|| format!("{} z", what()))?;
         Ok((DVec3::new(x, y, z), t))
     }
 
     fn color(&mut self, entity: &str, what: &str) -> Result<(DVec3, Tok<'a>), SceneError> {
-        let (r, t) = self.num(entity, &format!("{what} red"))?;
-        let (g, _) = self.num(entity, &format!("{what} green"))?;
-        let (b, _) = self.num(entity, &format!("{what} blue"))?;
+        let (r, t) = self.num_of(entity, &|| format!("{what} red"))?;
+        let (g, _) = self.num_of(entity, &|| format!("{what} green"))?;
+        let (b, _) = self.num_of(entity, &|| format!("{what} blue"))?;
         Ok((DVec3::new(r, g, b), t))
     }
 
@@ -174,7 +222,7 @@ impl<'a> Parser<'a> {
             if !VIEW_KEYWORDS.contains(&t.s) {
                 break;
             }
-            self.pos += 1;
+            self.advance();
             match t.s {
                 "from" => view.from = Some(self.vec3("from", "eye point")?),
                 "at" => view.at = Some(self.vec3("at", "look-at point")?),
@@ -209,12 +257,7 @@ impl<'a> Parser<'a> {
 
 /// Parses an NFF scene.
 pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
-    let mut p = Parser {
-        text,
-        path,
-        toks: tokenize(text),
-        pos: 0,
-    };
+    let mut p = Parser::new(text, path);
     let mut view: Option<View> = None;
     let mut background = DVec3::ZERO;
     let mut lights: Vec<(DVec3, Option<DVec3>)> = Vec::new();
@@ -224,7 +267,7 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let mut objects = Vec::new();
 
     while let Some(t) = p.peek() {
-        p.pos += 1;
+        p.advance();
         match t.s {
             "v" => {
                 if view.is_some() {
@@ -304,7 +347,7 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 let mut vertices = Vec::with_capacity(n.min(1024));
                 let mut toks = Vec::with_capacity(n.min(1024));
                 for i in 0..n {
-                    let (v, vt) = p.vec3("p", &format!("vertex {} of {n}", i + 1))?;
+                    let (v, vt) = p.vec3_of("p", &|| format!("vertex {} of {n}", i + 1))?;
                     vertices.push(v);
                     toks.push(vt);
                 }
@@ -322,8 +365,8 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 let mut normals = Vec::with_capacity(n.min(1024));
                 let mut toks = Vec::with_capacity(n.min(1024));
                 for i in 0..n {
-                    let (v, vt) = p.vec3("pp", &format!("vertex {} of {n}", i + 1))?;
-                    let (nv, nt) = p.vec3("pp", &format!("normal {} of {n}", i + 1))?;
+                    let (v, vt) = p.vec3_of("pp", &|| format!("vertex {} of {n}", i + 1))?;
+                    let (nv, nt) = p.vec3_of("pp", &|| format!("normal {} of {n}", i + 1))?;
                     p.check(nt, validate::nonzero_vector(nv, "a vertex normal"))?;
                     vertices.push(v);
                     normals.push(nv);
@@ -426,7 +469,9 @@ mod tests {
 
     #[test]
     fn tokens_and_comments() {
-        let toks = tokenize("s 1\t2#c 3\n  4 # x y\n5");
+        let text = "s 1\t2#c 3\n  4 # x y\n5";
+        let mut off = 0;
+        let toks: Vec<_> = std::iter::from_fn(|| scan(text, &mut off)).collect();
         let s: Vec<_> = toks.iter().map(|t| t.s).collect();
         assert_eq!(s, ["s", "1", "2", "4", "5"]);
         assert_eq!(toks[3].off, 12);
