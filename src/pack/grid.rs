@@ -182,11 +182,19 @@ pub fn skip_distances(cell_start: &[u32], dims: [u32; 3]) -> Vec<u8> {
                 *v = d[base + i * stride];
             }
             for i in 0..n {
+                // Outward from i: a cell r away gives at least r, so the
+                // search stops once r reaches the best found (at once in a
+                // listed cell, which most cells of a dense scene are).
                 let mut best = line[i] as usize;
-                let lo = i.saturating_sub(cap);
-                let hi = (i + cap).min(n - 1);
-                for (j, &v) in line.iter().enumerate().take(hi + 1).skip(lo) {
-                    best = best.min((v as usize).max(i.abs_diff(j)));
+                let mut r = 1;
+                while r < best {
+                    if i >= r {
+                        best = best.min((line[i - r] as usize).max(r));
+                    }
+                    if i + r < n {
+                        best = best.min((line[i + r] as usize).max(r));
+                    }
+                    r += 1;
                 }
                 d[base + i * stride] = best as u8;
             }
@@ -232,6 +240,40 @@ mod tests {
         assert!(skip_distances(&empty, dims)
             .iter()
             .all(|&v| v as u32 == SKIP_MAX));
+    }
+
+    /// Against brute force on larger grids, with distances past the cap.
+    #[test]
+    fn skip_distances_match_brute_force_past_the_cap() {
+        let mut seed = 12345u32;
+        for (dims, density) in [
+            ([41u32, 3, 2], 0.02),
+            ([23, 19, 11], 0.004),
+            ([9, 40, 7], 0.01),
+        ] {
+            let [nx, ny, nz] = dims.map(|d| d as usize);
+            let mut listed = Vec::new();
+            let mut counts = vec![0u32; nx * ny * nz + 1];
+            for c in 0..nx * ny * nz {
+                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                let add = ((seed >> 8) as f64 / (1u32 << 24) as f64) < density;
+                if add {
+                    listed.push((c % nx, (c / nx) % ny, c / (nx * ny)));
+                }
+                counts[c + 1] = counts[c] + add as u32;
+            }
+            let d = skip_distances(&counts, dims);
+            for c in 0..nx * ny * nz {
+                let (x, y, z) = (c % nx, (c / nx) % ny, c / (nx * ny));
+                let want = listed
+                    .iter()
+                    .map(|&(a, b, e)| x.abs_diff(a).max(y.abs_diff(b)).max(z.abs_diff(e)))
+                    .min()
+                    .unwrap_or(usize::MAX)
+                    .min(SKIP_MAX as usize);
+                assert_eq!(d[c] as usize, want, "{dims:?} ({x},{y},{z})");
+            }
+        }
     }
 
     #[test]
