@@ -263,7 +263,7 @@ mod tests {
                 counts[c + 1] = counts[c] + add as u32;
             }
             let d = skip_distances(&counts, dims);
-            for c in 0..nx * ny * nz {
+            for (c, &got) in d.iter().enumerate() {
                 let (x, y, z) = (c % nx, (c / nx) % ny, c / (nx * ny));
                 let want = listed
                     .iter()
@@ -271,7 +271,7 @@ mod tests {
                     .min()
                     .unwrap_or(usize::MAX)
                     .min(SKIP_MAX as usize);
-                assert_eq!(d[c] as usize, want, "{dims:?} ({x},{y},{z})");
+                assert_eq!(got as usize, want, "{dims:?} ({x},{y},{z})");
             }
         }
     }
