@@ -26,18 +26,25 @@ struct Tok<'a> {
 /// past it. Tokens are read one at a time: an array of them would hold 14
 /// M tokens (336 MB) for an NFF of 1 M spheres.
 fn scan<'a>(text: &'a str, off: &mut usize) -> Option<Tok<'a>> {
-    let base = *off;
+    let bytes = text.as_bytes();
+    let mut i = *off;
     let mut start: Option<usize> = None;
     let mut comment = false;
-    for (j, c) in text[base..].char_indices() {
-        let i = base + j;
+    while i < bytes.len() {
+        // ASCII bytes directly; any other character decoded (Unicode
+        // whitespace separates tokens too, as `char::is_whitespace` says).
+        let b = bytes[i];
+        let (space, len) = if b < 0x80 {
+            (matches!(b, b' ' | b'\t' | b'\n' | 0x0B | 0x0C | b'\r'), 1)
+        } else {
+            let c = text[i..].chars().next().unwrap_or(' ');
+            (c.is_whitespace(), c.len_utf8())
+        };
         if comment {
-            if c == '\n' {
+            if b == b'\n' {
                 comment = false;
             }
-            continue;
-        }
-        if c.is_whitespace() || c == '#' {
+        } else if space || b == b'#' {
             if let Some(s) = start {
                 // A `#` right after a token is read again: it starts a comment.
                 *off = i;
@@ -46,10 +53,11 @@ fn scan<'a>(text: &'a str, off: &mut usize) -> Option<Tok<'a>> {
                     off: s,
                 });
             }
-            comment = c == '#';
+            comment = b == b'#';
         } else if start.is_none() {
             start = Some(i);
         }
+        i += len;
     }
     *off = text.len();
     start.map(|s| Tok {
@@ -475,6 +483,13 @@ mod tests {
         let s: Vec<_> = toks.iter().map(|t| t.s).collect();
         assert_eq!(s, ["s", "1", "2", "4", "5"]);
         assert_eq!(toks[3].off, 12);
+        // Any Unicode whitespace separates; other characters stay in tokens.
+        let text = "s\u{a0}1\u{2003}2\x0b#é 3\né4 é";
+        let mut off = 0;
+        let toks: Vec<_> = std::iter::from_fn(|| scan(text, &mut off)).collect();
+        let s: Vec<_> = toks.iter().map(|t| t.s).collect();
+        assert_eq!(s, ["s", "1", "2", "é4", "é"]);
+        assert_eq!(&text[toks[3].off..toks[3].off + 3], "é4");
     }
 
     #[test]
