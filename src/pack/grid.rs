@@ -9,8 +9,6 @@
 
 use super::layout::cell_pack;
 use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, SKIP_MAX};
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Bounds in camera-relative f64.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,17 +71,6 @@ pub fn resolution(b: &Bounds, n: usize) -> [u32; 3] {
 /// Files every primitive (by its bounds) into every cell they overlap.
 /// `dims` overrides the heuristic.
 pub fn build(bounds: &[Bounds], dims: Option<[u32; 3]>) -> Grid {
-    let chunks = if bounds.len() >= 1 << 16 {
-        rayon::current_num_threads().clamp(1, 8)
-    } else {
-        1
-    };
-    build_in_chunks(bounds, dims, chunks)
-}
-
-/// `build`, filing the primitives in `chunks` parallel chunks (the result
-/// does not depend on it).
-fn build_in_chunks(bounds: &[Bounds], dims: Option<[u32; 3]>, chunks: usize) -> Grid {
     if bounds.is_empty() {
         return Grid {
             dims: [1, 1, 1],
@@ -110,7 +97,7 @@ fn build_in_chunks(bounds: &[Bounds], dims: Option<[u32; 3]>, chunks: usize) -> 
         (c.max(0.0) as u32).min(dims[i] - 1)
     };
     let ranges: Vec<(u32, u32)> = bounds
-        .par_iter()
+        .iter()
         .map(|b| {
             let l = [0, 1, 2].map(|i| cell_of(b.lo[i] - margin[i], i));
             let h = [0, 1, 2].map(|i| cell_of(b.hi[i] + margin[i], i));
@@ -131,48 +118,20 @@ fn build_in_chunks(bounds: &[Bounds], dims: Option<[u32; 3]>, chunks: usize) -> 
             }
         }
     };
-    // Counting sort in parallel: each chunk of primitives counts its
-    // references per cell; a cell's list then holds chunk 0's primitives,
-    // then chunk 1's, ..., so every list stays in ascending order (the
-    // tracer's ties between equal distances depend on it).
-    let per_chunk = ranges.len().div_ceil(chunks.max(1));
-    let mut chunk_counts: Vec<Vec<u32>> = ranges
-        .par_chunks(per_chunk)
-        .map(|rs| {
-            let mut c = vec![0u32; ncells];
-            for r in rs {
-                for_cells(r, &mut |i| c[i] += 1);
-            }
-            c
-        })
-        .collect();
-    // counts[c + 1]: references in cells 0..=c; each chunk's count becomes
-    // the offset where its references to that cell start.
-    for c in 0..ncells {
-        let mut at = counts[c];
-        for cc in chunk_counts.iter_mut() {
-            let n = cc[c];
-            cc[c] = at;
-            at += n;
-        }
-        counts[c + 1] = at;
+    for r in &ranges {
+        for_cells(r, &mut |c| counts[c + 1] += 1);
     }
-    let refs: Vec<AtomicU32> = (0..counts[ncells]).map(|_| AtomicU32::new(0)).collect();
-    ranges
-        .par_chunks(per_chunk)
-        .zip(chunk_counts.par_iter_mut())
-        .enumerate()
-        .for_each(|(k, (rs, fill))| {
-            for (j, r) in rs.iter().enumerate() {
-                let p = (k * per_chunk + j) as u32;
-                for_cells(r, &mut |c| {
-                    // Each slot is written by exactly one chunk.
-                    refs[fill[c] as usize].store(p, Ordering::Relaxed);
-                    fill[c] += 1;
-                });
-            }
+    for i in 0..ncells {
+        counts[i + 1] += counts[i];
+    }
+    let mut fill = counts.clone();
+    let mut refs = vec![0u32; counts[ncells] as usize];
+    for (p, r) in ranges.iter().enumerate() {
+        for_cells(r, &mut |c| {
+            refs[fill[c] as usize] = p as u32;
+            fill[c] += 1;
         });
-    let refs: Vec<u32> = refs.into_iter().map(AtomicU32::into_inner).collect();
+    }
     let skip = skip_distances(&counts, dims);
     let mut cell_start = counts;
     cell_start.extend(skip.chunks(4).map(|c| {
@@ -281,42 +240,6 @@ mod tests {
         assert!(skip_distances(&empty, dims)
             .iter()
             .all(|&v| v as u32 == SKIP_MAX));
-    }
-
-    #[test]
-    fn filing_in_parallel_chunks_gives_the_same_grid() {
-        let mut seed = 7u32;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (seed >> 8) as f64 / (1u32 << 24) as f64
-        };
-        let bounds: Vec<Bounds> = (0..3000)
-            .map(|_| {
-                let c = [rnd() * 10.0, rnd() * 10.0, rnd() * 10.0];
-                let r = [rnd() * 0.8, rnd() * 0.8, rnd() * 0.8];
-                Bounds {
-                    lo: [0, 1, 2].map(|i| c[i] - r[i]),
-                    hi: [0, 1, 2].map(|i| c[i] + r[i]),
-                }
-            })
-            .collect();
-        let one = build_in_chunks(&bounds, None, 1);
-        assert!(one.refs.len() > bounds.len());
-        for chunks in [2, 3, 7] {
-            let g = build_in_chunks(&bounds, None, chunks);
-            assert_eq!(g.cell_start, one.cell_start, "{chunks} chunks");
-            assert_eq!(g.refs, one.refs, "{chunks} chunks");
-            assert_eq!(g.ranges, one.ranges, "{chunks} chunks");
-        }
-        // Every cell's list is in ascending order.
-        for c in 0..one
-            .cell_start
-            .len()
-            .min(one.dims.iter().product::<u32>() as usize)
-        {
-            let (a, b) = (one.cell_start[c] as usize, one.cell_start[c + 1] as usize);
-            assert!(one.refs[a..b].windows(2).all(|w| w[0] < w[1]), "cell {c}");
-        }
     }
 
     /// Against brute force on larger grids, with distances past the cap.

@@ -11,7 +11,6 @@ use glam::DVec3;
 use grid::Bounds;
 use layout::{Globals, Light, Material, Prim};
 pub use pages::Pages;
-use rayon::prelude::*;
 use std::time::Instant;
 
 /// How eye rays sample a pixel.
@@ -379,7 +378,7 @@ fn spread3(v: u32) -> u64 {
 fn morton_order(prims: &mut [(Prim, Bounds)]) {
     let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
     let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
-    prims.par_sort_by_cached_key(|(_, b)| {
+    prims.sort_by_cached_key(|(_, b)| {
         let q = [0, 1, 2].map(|i| {
             let c = (b.lo[i] + b.hi[i]) * 0.5;
             (((c - all.lo[i]) / e[i]) * 1023.0).clamp(0.0, 1023.0) as u32
