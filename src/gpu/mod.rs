@@ -166,6 +166,12 @@ impl SceneBuffers {
     }
 }
 
+/// render.comp's push constants: the tile (x0, y0, w, h), then the
+/// workgroup order's stride and three unused words.
+type RenderPush = [u32; 8];
+/// probe.comp's push constants: mode, item count, two unused words.
+type ProbePush = [u32; 4];
+
 /// Kernels by (name, specialization constants 0..=2).
 type KernelCache = Mutex<HashMap<(&'static str, [u32; 3]), Arc<Kernel>>>;
 
@@ -361,7 +367,7 @@ impl Gpu {
             name,
             spirv,
             &[0, 1, 2, 3, 4, 5, 6, 7, 8],
-            32,
+            std::mem::size_of::<RenderPush>() as u32,
             &[
                 (0, opts.workgroup[0]),
                 (1, opts.workgroup[1]),
@@ -389,7 +395,7 @@ impl Gpu {
                     d,
                     cmd,
                     &kernel,
-                    bytemuck::bytes_of(&[0u32; 8]),
+                    bytemuck::bytes_of(&RenderPush::default()),
                     [1, 1, 1],
                     Some(&counters),
                 )
@@ -411,7 +417,7 @@ impl Gpu {
             } else {
                 1
             };
-            let push: [u32; 8] = [t.x0, t.y0, t.w, t.h, stride, 0, 0, 0];
+            let push: RenderPush = [t.x0, t.y0, t.w, t.h, stride, 0, 0, 0];
             cmds.run_once(|d, cmd| {
                 cmds.record_dispatch(
                     d,
@@ -488,7 +494,13 @@ impl Gpu {
         }
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         self.check_fits(packed, 0)?;
-        let kernel = self.kernel(name, spirv, &[0, 1, 2, 3, 4, 5, 6, 9, 10], 16, &[])?;
+        let kernel = self.kernel(
+            name,
+            spirv,
+            &[0, 1, 2, 3, 4, 5, 6, 9, 10],
+            std::mem::size_of::<ProbePush>() as u32,
+            &[],
+        )?;
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, false)?;
         let input = Buffer::host_input(&self.ctx, "probe items", bytemuck::cast_slice(items))?;
@@ -506,7 +518,7 @@ impl Gpu {
                 self.ctx.info.max_compute_work_group_count[0]
             )));
         }
-        let push: [u32; 4] = [mode as u32, count, 0, 0];
+        let push: ProbePush = [mode as u32, count, 0, 0];
         cmds.run_once(|d, cmd| {
             cmds.record_dispatch(
                 d,
