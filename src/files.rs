@@ -239,6 +239,14 @@ pub fn write_atomically(
             w.flush()
                 .map_err(|e| anyhow!("{}: cannot write: {e}", path.display()))?;
         }
+        // Test hook (docs/reliability.md): hold the written temporary file
+        // this long before the rename, so a test can interrupt the write.
+        if let Some(ms) = std::env::var("WHITTED_TEST_WRITE_DELAY_MS")
+            .ok()
+            .and_then(|v| v.parse::<u64>().ok())
+        {
+            std::thread::sleep(std::time::Duration::from_millis(ms));
+        }
         if let Ok(m) = std::fs::metadata(path) {
             // Replacing a file keeps its mode.
             let _ = tmp.as_file().set_permissions(m.permissions());

@@ -85,6 +85,10 @@ pub fn run(cli: Cli) -> u8 {
         quiet: cli.quiet,
         verbose: cli.verbose,
     };
+    // Test hook (docs/reliability.md): prove that a panic exits with 3.
+    if std::env::var_os("WHITTED_TEST_PANIC").is_some() {
+        panic!("WHITTED_TEST_PANIC is set");
+    }
     let r = match cli.command {
         Command::Render(a) => render::run(a, ui),
         Command::Validate(a) => validate::run(a, ui),
