@@ -30,9 +30,10 @@ use std::time::{Duration, Instant};
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
-    /// More messages on stderr: -v notes and timings of each phase, -vv
-    /// debug messages (Vulkan's included), -vvv everything. RUST_LOG, when
-    /// set, overrides (e.g. RUST_LOG=gpu_allocator=debug).
+    /// More messages on stderr: -v adds whitted's debug messages (the time
+    /// of each phase, choices made), -vv other crates' and Vulkan's too,
+    /// -vvv everything. RUST_LOG, when set, overrides (e.g.
+    /// RUST_LOG=gpu_allocator=debug).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
     /// Errors only: no progress bars, notes or summaries on stderr.
