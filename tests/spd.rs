@@ -9,7 +9,7 @@ mod common;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 use whitted::gen::spd::{self, SpdScene};
-use whitted::pack;
+use whitted::pack::{self, Settings};
 use whitted::scene::{Material, Scene, Shape};
 
 fn spd_dir() -> PathBuf {
@@ -390,4 +390,48 @@ fn every_scene_packs_and_renders() {
         let first = f.pixels[0];
         assert!(f.pixels.iter().any(|p| *p != first), "{s}: a flat image");
     }
+}
+
+/// The preset's extra reflection rays are traced for the statistics only:
+/// the image is the same bit for bit, and only the counts change (on
+/// gears, whose transparent gears have k_s = 0).
+#[test]
+fn spd_counting_changes_counts_not_pixels() {
+    let scene = spd::generate(SpdScene::Gears, Some(2)).unwrap();
+    let settings = Settings {
+        width: Some(40),
+        height: Some(40),
+        ..pack::Preset::Spd.settings()
+    };
+    let plain = pack::pack(&scene, &settings);
+    let mut spd = plain.clone();
+    spd.set_counting(pack::Counting::Spd);
+    let a = whitted::cpu::render(&plain, &|_, _| {});
+    let b = whitted::cpu::render(&spd, &|_, _| {});
+    let bits = |f: &whitted::cpu::Frame| -> Vec<u32> {
+        f.pixels.iter().flatten().map(|v| v.to_bits()).collect()
+    };
+    assert!(bits(&a) == bits(&b), "the extra rays changed the image");
+    assert_eq!(
+        (a.stats.eye, a.stats.eye_hit),
+        (b.stats.eye, b.stats.eye_hit)
+    );
+    assert!(
+        b.stats.reflect > a.stats.reflect,
+        "{:?} {:?}",
+        a.stats,
+        b.stats
+    );
+    assert!(
+        b.stats.refract > a.stats.refract,
+        "{:?} {:?}",
+        a.stats,
+        b.stats
+    );
+    assert!(
+        b.stats.shadow > a.stats.shadow,
+        "{:?} {:?}",
+        a.stats,
+        b.stats
+    );
 }
