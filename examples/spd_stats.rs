@@ -5,8 +5,10 @@
 //! counting), its counts printed beside the SPD's published ones as the
 //! Markdown table of docs/spd.md.
 //!
-//! Run: `cargo run --release --example spd_stats [-- SCENE... [--traced]]`
-//! (`--traced`: count the rays we trace instead of the SPD's way).
+//! Run: `cargo run --release --example spd_stats [-- SCENE... [--size N]
+//! [--traced]]` (`--size N`: every scene named at size N, beside the
+//! table for another size; `--traced`: count the rays we trace instead of
+//! the SPD's way).
 
 use whitted::gen::spd::{self, SpdScene};
 use whitted::pack::{self, Counting, Preset};
@@ -50,10 +52,16 @@ fn cell(ours: u64, theirs: u64) -> String {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let traced = args.iter().any(|a| a == "--traced");
+    let size: Option<u32> = args
+        .iter()
+        .position(|a| a == "--size")
+        .map(|i| args[i + 1].parse().expect("--size N"));
     let scenes: Vec<SpdScene> = {
         let named: Vec<SpdScene> = args
             .iter()
-            .filter(|a| !a.starts_with("--"))
+            .enumerate()
+            .filter(|(i, a)| !a.starts_with("--") && (*i == 0 || args[i - 1] != "--size"))
+            .map(|(_, a)| a)
             .map(|a| a.parse().unwrap_or_else(|e| panic!("{e}")))
             .collect();
         if named.is_empty() {
@@ -70,7 +78,7 @@ fn main() {
     println!("| scene (size) | ray kind | ours | SPD | difference |");
     println!("|---|---|---:|---:|---:|");
     for s in scenes {
-        let size = published_size(s);
+        let size = size.unwrap_or(published_size(s));
         let scene = spd::generate(s, Some(size)).unwrap();
         let mut p = pack::pack(&scene, &Preset::Spd.settings());
         p.set_counting(counting);

@@ -48,7 +48,8 @@ impl<'a> SceneView<'a> {
     }
 }
 
-/// Ray counts as the SPD defines them.
+/// Ray counts as the SPD defines them (to the letter under
+/// `pack::Counting::Spd`: docs/spd.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct RayStats {
     pub eye: u64,
