@@ -13,5 +13,6 @@ pub mod gpu;
 pub mod metrics;
 pub mod output;
 pub mod pack;
+pub mod povray;
 pub mod scene;
 pub mod trace;
