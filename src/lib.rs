@@ -19,6 +19,7 @@ pub mod metrics;
 pub mod output;
 pub mod pack;
 pub mod plot;
+pub mod povray;
 pub mod run;
 pub mod scene;
 pub mod sys;
