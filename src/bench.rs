@@ -32,6 +32,7 @@ pub struct Case {
     pub height: u32,
     pub max_depth: u32,
     pub min_weight: f32,
+    pub sampling: crate::pack::Sampling,
     pub primitives: u64,
 }
 
@@ -177,6 +178,14 @@ impl Case {
                 } else {
                     1.0 / 256.0
                 }),
+            sampling: match arg_value(&args, "--sampling") {
+                Some("corners") => crate::pack::Sampling::Corners,
+                Some(_) => crate::pack::Sampling::Centers,
+                None if arg_value(&args, "--preset") == Some("spd") => {
+                    crate::pack::Sampling::Corners
+                }
+                None => crate::pack::Sampling::Centers,
+            },
             primitives: primitives(scene),
             args,
         }
@@ -285,13 +294,18 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
         }
         Engine::PovRay => {
             let pov = plan.work.join(format!("{}.pov", slug(&case.name)));
-            let mut cmd = Command::new("povray");
-            cmd.arg(format!("+I{}", pov.display()))
-                .arg(format!("+O{}", image.display()))
-                .arg(format!("+W{}", case.width))
-                .arg(format!("+H{}", case.height))
-                .arg(format!("+WT{}", plan.povray_threads))
-                .args(["-D", "-A", "+FN8", "-GA", "-P"]);
+            let opts = crate::povray::Options {
+                width: case.width,
+                height: case.height,
+                threads: plan.povray_threads as u32,
+                sampling: case.sampling,
+            };
+            let name = image
+                .file_name()
+                .and_then(|n| n.to_str())
+                .ok_or_else(|| anyhow!("{}: not a plain file name", image.display()))?;
+            let mut cmd = crate::povray::command(&pov, name, &opts);
+            cmd.current_dir(&plan.work);
             let (wall, peak, out) = timed(cmd, "povray (is POV-Ray 3.7 installed?)")?;
             if !out.status.success() || !image.exists() {
                 bail!(
@@ -323,26 +337,39 @@ pub fn slug(name: &str) -> String {
         .collect()
 }
 
+/// Where an engine's image of a case goes: whitted writes linear floats
+/// (.exr), POV-Ray a 16-bit linear PNG (`povray::command`).
 fn image_path(plan: &Plan, case: &Case, engine: &Engine) -> PathBuf {
+    let ext = match engine {
+        Engine::Whitted { .. } => "exr",
+        Engine::PovRay => "png",
+    };
     plan.work.join(format!(
-        "{}.{}.png",
+        "{}.{}.{ext}",
         slug(&case.name),
         slug(&engine.label())
     ))
 }
 
-/// Loads an 8-bit image as linear-free [0,1] floats and bytes.
-fn load_rgb(p: &Path) -> Result<(u32, u32, Vec<u8>)> {
+/// An image file as linear RGB clamped to [0, 1].
+fn load_linear(p: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     let img = image::open(p)
         .with_context(|| format!("cannot read {}", p.display()))?
-        .to_rgb8();
-    Ok((img.width(), img.height(), img.into_raw()))
+        .to_rgb32f();
+    let px = img
+        .pixels()
+        .map(|q| {
+            q.0.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
+        })
+        .collect();
+    Ok((img.width(), img.height(), px))
 }
 
-/// PSNR and mean FLIP of `test` against `reference` (8-bit images).
+/// PSNR (linear values clamped to [0, 1], as tests/povray.rs) and mean
+/// FLIP (on the 8-bit sRGB encodings) of `test` against `reference`.
 pub fn image_difference(reference: &Path, test: &Path) -> Result<(f64, f64)> {
-    let (w, h, a) = load_rgb(reference)?;
-    let (w2, h2, b) = load_rgb(test)?;
+    let (w, h, a) = load_linear(reference)?;
+    let (w2, h2, b) = load_linear(test)?;
     if (w, h) != (w2, h2) {
         bail!(
             "{} is {w}x{h} but {} is {w2}x{h2}",
@@ -350,19 +377,13 @@ pub fn image_difference(reference: &Path, test: &Path) -> Result<(f64, f64)> {
             test.display()
         );
     }
-    let f = |v: &[u8]| -> Vec<[f32; 3]> {
-        v.chunks(3)
-            .map(|c| {
-                [
-                    c[0] as f32 / 255.0,
-                    c[1] as f32 / 255.0,
-                    c[2] as f32 / 255.0,
-                ]
-            })
+    let psnr = crate::metrics::psnr(&a, &b);
+    let srgb = |v: &[[f32; 3]]| -> Vec<u8> {
+        v.iter()
+            .flat_map(|c| c.map(|x| crate::output::to_u8(x, crate::output::Encoding::Srgb)))
             .collect()
     };
-    let psnr = crate::metrics::psnr(&f(&a), &f(&b));
-    let (_, flip) = crate::metrics::flip(&a, &b, w, h);
+    let (_, flip) = crate::metrics::flip(&srgb(&a), &srgb(&b), w, h);
     Ok((psnr, flip))
 }
 

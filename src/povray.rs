@@ -99,7 +99,7 @@ pub fn render(pov_path: &Path, opts: &Options) -> Result<Rendered> {
         width,
         height,
         threads,
-        sampling,
+        ..
     } = *opts;
     if width == 0 || height == 0 || width > MAX_EDGE || height > MAX_EDGE {
         bail!("image size {width}x{height} is outside 1..={MAX_EDGE} on each side");
@@ -118,19 +118,8 @@ pub fn render(pov_path: &Path, opts: &Options) -> Result<Rendered> {
         .context("cannot create a temporary directory for POV-Ray")?;
     let out_name = "povray.png";
     let t0 = Instant::now();
-    let out = Command::new(EXECUTABLE)
+    let out = command(&input, out_name, opts)
         .current_dir(dir.path())
-        .arg(format!("+I{}", input.display()))
-        .arg(format!("+O{out_name}"))
-        .arg(format!("+W{width}"))
-        .arg(format!("+H{height}"))
-        .arg(format!("+WT{threads}"))
-        .args(match sampling {
-            Sampling::Centers => &["-A"][..],
-            Sampling::Corners => &["+A0.0", "+AM2", "+R1", "-J"][..],
-        })
-        // Full quality and no alpha whatever a user's povray.ini says.
-        .args(["-D", "+Q9", "-UA", "+FN16", "File_Gamma=1.0", "-P", "-V"])
         .output()
         .with_context(|| format!("cannot run `{EXECUTABLE}` (is POV-Ray installed?)"))?;
     let wall_seconds = t0.elapsed().as_secs_f64();
@@ -169,6 +158,26 @@ pub fn render(pov_path: &Path, opts: &Options) -> Result<Rendered> {
         bounding_seconds: reported_seconds(&log, "Bounding Time:"),
         trace_seconds: reported_seconds(&log, "Trace Time:"),
     })
+}
+
+/// The POV-Ray command line for `input` (absolute, or relative to the
+/// directory it runs in) writing `output` (16-bit linear PNG) as `opts`
+/// says. Run it in a directory POV-Ray may write to (its default I/O
+/// policy allows the current directory and /tmp).
+pub fn command(input: &Path, output: &str, opts: &Options) -> Command {
+    let mut c = Command::new(EXECUTABLE);
+    c.arg(format!("+I{}", input.display()))
+        .arg(format!("+O{output}"))
+        .arg(format!("+W{}", opts.width))
+        .arg(format!("+H{}", opts.height))
+        .arg(format!("+WT{}", opts.threads))
+        .args(match opts.sampling {
+            Sampling::Centers => &["-A"][..],
+            Sampling::Corners => &["+A0.0", "+AM2", "+R1", "-J"][..],
+        })
+        // Full quality and no alpha whatever a user's povray.ini says.
+        .args(["-D", "+Q9", "-UA", "+FN16", "File_Gamma=1.0", "-P", "-V"]);
+    c
 }
 
 /// The seconds in POV-Ray's `LABEL  0 hours  0 minutes  1 seconds (1.234 seconds)`.

@@ -14,7 +14,7 @@
 use crate::cpu::{self, Frame};
 use crate::error::{device, user};
 use crate::gpu::{self, Gpu, GpuError, GpuOptions};
-use crate::pack::{self, Packed, Settings};
+use crate::pack::{self, Counting, Packed, Settings};
 use crate::scene::Scene;
 use anyhow::{anyhow, Context, Result};
 use std::time::Instant;
@@ -40,6 +40,8 @@ pub struct RenderOptions {
     pub gpu: GpuOptions,
     /// Worker threads for the CPU mirror (None: all cores).
     pub threads: Option<u32>,
+    /// How rays are counted (`--preset spd` counts as the SPD does).
+    pub counting: Counting,
 }
 
 /// Which backend rendered a frame.
@@ -74,10 +76,12 @@ pub struct Rendered {
 /// A progress callback: (done, total) units of work.
 pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
-/// Packs `scene` for `settings`; problems with the scene or the settings
-/// are the user's (exit 2).
-pub fn pack(scene: &Scene, settings: &Settings) -> Result<Packed> {
-    Ok(pack::pack(scene, settings))
+/// Packs `scene` for `settings`, counting rays as `counting` says;
+/// problems with the scene or the settings are the user's (exit 2).
+pub fn pack(scene: &Scene, settings: &Settings, counting: Counting) -> Result<Packed> {
+    let mut p = pack::pack(scene, settings);
+    p.set_counting(counting);
+    Ok(p)
 }
 
 /// Renders `scene`: packs it, then [`render_packed`].
@@ -92,7 +96,7 @@ pub fn render_with_progress(
     progress: Progress,
 ) -> Result<Rendered> {
     let t0 = Instant::now();
-    let packed = pack(scene, &opts.settings)?;
+    let packed = pack(scene, &opts.settings, opts.counting)?;
     let pack_seconds = t0.elapsed().as_secs_f64();
     let mut r = render_packed(&packed, opts, progress)?;
     r.pack_seconds = pack_seconds;

@@ -6,6 +6,7 @@ use crate::bench::{self, Case, Engine, Plan};
 use crate::error::user;
 use crate::files::{self, Dest, Output};
 use crate::gen;
+use crate::gen::spd::{self, SpdScene};
 use crate::scene::Scene;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -14,6 +15,8 @@ use std::path::{Path, PathBuf};
 /// Which scenes the suite holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Suite {
+    /// The SPD's seven scenes (generated at --size) under --preset spd.
+    Spd,
     /// The example scenes in --scenes (default `scenes/`) at their own size.
     Examples,
     /// 20 000 random spheres (`whitted generate --count 20000`), 1024x768, depth 5.
@@ -25,7 +28,11 @@ pub struct BenchArgs {
     /// Scene groups to run (comma-separated); default: all of them.
     #[arg(long, value_enum, value_delimiter = ',')]
     pub suite: Vec<Suite>,
-    /// Instead of the suite: sphereflakes of level 1 to 6 and random
+    /// SPD size factor for the SPD scenes (default: each scene's own, as
+    /// `whitted generate NAME`).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub size: Option<u32>,
+    /// Instead of the suite: SPD balls of size 1 to 6 (--preset spd) and random
     /// spheres from 1 k to 1 M, to see how time, rays and memory grow with
     /// the primitive count (fitted exponents printed; --plot draws them).
     #[arg(long, conflicts_with = "suite")]
@@ -87,6 +94,15 @@ fn suite_cases(a: &BenchArgs, dir: &Path) -> Result<Vec<Case>> {
     let mut cases = Vec::new();
     for s in suites {
         match s {
+            Suite::Spd => {
+                for sc in SpdScene::ALL {
+                    let scene = spd::generate(sc, a.size).map_err(|e| user(anyhow!(e)))?;
+                    let size = a.size.unwrap_or(sc.default_size());
+                    let name = format!("{}-{size}", sc.name());
+                    let p = write_scene(dir, &name, &scene)?;
+                    cases.push(Case::new(&name, "spd", &p, &scene, &["--preset", "spd"]));
+                }
+            }
             Suite::Examples => {
                 if !a.scenes.is_dir() {
                     log::warn!(

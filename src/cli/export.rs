@@ -38,14 +38,15 @@ pub fn run(a: ExportArgs, _ui: Ui) -> Result<u8> {
     .map_err(user)?;
     let scene = scene::load(&a.scene).map_err(user)?;
     let dest = Dest::new(&a.output);
+    let (max_depth, min_weight) = a.depth.resolve(&crate::pack::Settings::default());
     let text = match files::extension(&a.output).as_deref() {
         Some("nff") => crate::export::to_nff(&scene).map_err(user)?,
         _ => crate::export::to_pov(
             &scene,
             a.size.width.unwrap_or(scene.camera.width),
             a.size.height.unwrap_or(scene.camera.height),
-            a.depth.max_depth,
-            a.depth.min_weight,
+            max_depth,
+            min_weight,
         )
         .map_err(user)?,
     };

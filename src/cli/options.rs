@@ -1,7 +1,7 @@
 //! Options shared by `render` and `validate`, and their parsers.
 
 use crate::gpu::{self, GpuOptions};
-use crate::pack::{Sampling, Settings};
+use crate::pack::{Counting, Preset, Sampling, Settings};
 use clap::Args;
 
 /// The image size (`render`, `validate`, `export`).
@@ -18,28 +18,48 @@ pub struct SizeOpts {
 /// How deep the ray tree goes (`render`, `validate`, `export`).
 #[derive(Args, Clone, Debug)]
 pub struct DepthOpts {
-    /// Generations of reflection/refraction (0 = local model only).
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=crate::constants::MAX_DEPTH_LIMIT as i64))]
-    pub max_depth: u32,
+    /// Generations of reflection/refraction (0 = local model only)
+    /// [default: 5; --preset spd: 4].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=crate::constants::MAX_DEPTH_LIMIT as i64))]
+    pub max_depth: Option<u32>,
     /// Adaptive depth control: a branch stops when its accumulated weight
-    /// (largest channel) falls under this; 0 switches it off.
-    #[arg(long, default_value_t = 1.0 / 256.0, value_parser = parse_weight)]
-    pub min_weight: f32,
+    /// (largest channel) falls under this; 0 switches it off
+    /// [default: 1/256 = 0.00390625; --preset spd: 0].
+    #[arg(long, value_parser = parse_weight)]
+    pub min_weight: Option<f32>,
+}
+
+impl DepthOpts {
+    /// The depth and weight asked for, over `base`'s.
+    pub fn resolve(&self, base: &Settings) -> (u32, f32) {
+        (
+            self.max_depth.unwrap_or(base.max_depth),
+            self.min_weight.unwrap_or(base.min_weight),
+        )
+    }
 }
 
 #[derive(Args, Clone, Debug)]
 pub struct RenderOpts {
+    /// A named set of settings; options given beside it override it.
+    /// `spd`: the SPD's testing procedure (docs/spd.md): 512x512, corner
+    /// rays (513x513), tree depth 5 counting the eye ray (--max-depth 4),
+    /// no adaptive cut-off (--min-weight 0), rays counted as the SPD counts
+    /// them.
+    #[arg(long, value_enum)]
+    pub preset: Option<Preset>,
     #[command(flatten)]
     pub size: SizeOpts,
     #[command(flatten)]
     pub depth: DepthOpts,
     /// Samples per pixel: stratified, jittered by a per-pixel hash
-    /// (reproducible). 1 = the pixel centre.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4096))]
-    pub spp: u32,
-    /// Pixel centres (with --spp jitter), or SPD's (W+1)×(H+1) corner rays.
-    #[arg(long, value_enum, default_value_t = Sampling::Centers)]
-    pub sampling: Sampling,
+    /// (reproducible). 1 = the pixel centre [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub spp: Option<u32>,
+    /// Pixel centres (with --spp jitter), or SPD's (W+1)×(H+1) corner rays
+    /// [default: centers; --preset spd: corners].
+    #[arg(long, value_enum)]
+    pub sampling: Option<Sampling>,
     /// Override the voxel grid resolution, e.g. 64x64x32.
     #[arg(long, value_parser = parse_grid, value_name = "NXxNYxNZ")]
     pub grid: Option<[u32; 3]>,
@@ -49,16 +69,32 @@ pub struct RenderOpts {
 }
 
 impl RenderOpts {
+    /// The preset's settings (or the defaults) with every option given
+    /// over them.
     pub fn settings(&self) -> Settings {
+        let base = self.preset.map(Preset::settings).unwrap_or_default();
+        let (max_depth, min_weight) = self.depth.resolve(&base);
         Settings {
-            width: self.size.width,
-            height: self.size.height,
-            max_depth: self.depth.max_depth,
-            min_weight: self.depth.min_weight,
-            spp: self.spp,
-            sampling: self.sampling,
-            grid: self.grid,
+            width: self.size.width.or(base.width),
+            height: self.size.height.or(base.height),
+            max_depth,
+            min_weight,
+            spp: self.spp.unwrap_or(base.spp),
+            sampling: self.sampling.unwrap_or(base.sampling),
+            grid: self.grid.or(base.grid),
         }
+    }
+
+    /// How rays are counted: as the preset says, or as traced.
+    pub fn counting(&self) -> Counting {
+        let c = self.preset.map(Preset::counting).unwrap_or_default();
+        if c == Counting::Spd && self.settings().min_weight > 0.0 {
+            log::warn!(
+                "--preset spd with --min-weight above 0: adaptive cut-off drops rays the SPD \
+                 counts, so the ray statistics are not the SPD's"
+            );
+        }
+        c
     }
 }
 

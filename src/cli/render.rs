@@ -88,9 +88,10 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         backend: a.backend,
         gpu: a.gpu.options(),
         threads: a.opts.threads,
+        counting: a.opts.counting(),
     };
     let t_pack = Instant::now();
-    let packed = run::pack(&scene, &opts.settings)?;
+    let packed = run::pack(&scene, &opts.settings, opts.counting)?;
     drop(scene);
     let t_build = t_pack.elapsed().as_secs_f64();
     log::debug!("packed in {t_build:.3} s");
@@ -109,6 +110,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
             "width": frame.width,
             "height": frame.height,
             "rays": frame.stats,
+            "counting": packed.counting(),
             "work": { "intersection_tests": frame.work.tests, "cells_visited": frame.work.cells },
             "seconds": {
                 "load": t_load,

@@ -51,7 +51,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
     }
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
     let scene = scene::load(&a.scene).map_err(user)?;
-    let packed = run::pack(&scene, &a.opts.settings())?;
+    let packed = run::pack(&scene, &a.opts.settings(), a.opts.counting())?;
     drop(scene);
     let gopts = a.gpu.options();
     let g = Gpu::new(&gopts).map_err(|e| user(anyhow!("validate: {e}")))?;
