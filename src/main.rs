@@ -419,13 +419,29 @@ fn gpu_options(g: &GpuArgs) -> GpuOptions {
         tile: g.tile,
         workgroup: g.workgroup,
         staging: false,
+        ..Default::default()
     }
 }
 
-/// A GPU error: the user's to fix (exit 2) or internal (exit 3).
+/// The device failed: lost, out of memory, timed out, or its driver
+/// refused the kernel (exit code 4).
+#[derive(Debug)]
+struct DeviceFault(GpuError);
+
+impl std::fmt::Display for DeviceFault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+impl std::error::Error for DeviceFault {}
+
+/// A GPU error: the user's to fix (exit 2), the device's failure (exit 4)
+/// or internal (exit 3).
 fn gpu_err(e: GpuError) -> anyhow::Error {
     if e.is_user_error() {
         user(anyhow!(e))
+    } else if e.is_device_fault() {
+        anyhow!(DeviceFault(e))
     } else {
         anyhow!(e)
     }
@@ -701,6 +717,8 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             if e.downcast_ref::<UserError>().is_some() {
                 ExitCode::from(2)
+            } else if e.downcast_ref::<DeviceFault>().is_some() {
+                ExitCode::from(4)
             } else {
                 ExitCode::from(3)
             }
