@@ -3,15 +3,22 @@
 //! mirror of the same algorithm on the same packed data (`cpu`, `trace`).
 //!
 //! Data flow: `scene::load` → `pack::pack` → `cpu::render` | `gpu::render`
-//! → `output::write`.
+//! → `output::write`; `run::render` is the one entry every command and
+//! test calls (docs/architecture.md).
 
+pub mod cli;
 pub mod constants;
 pub mod cpu;
+pub mod error;
 pub mod export;
+pub mod files;
 pub mod gen;
 pub mod gpu;
 pub mod metrics;
 pub mod output;
 pub mod pack;
+pub mod run;
 pub mod scene;
 pub mod trace;
+
+pub use run::{render, Backend, RenderOptions, Rendered};

@@ -483,7 +483,8 @@ fn cli_backend_gpu_end_to_end() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr_of(&o));
-    assert!(!stderr_of(&o).contains("vulkan error"), "{}", stderr_of(&o));
+    // The debug messenger's errors and warnings print as "error: vulkan: ...".
+    assert!(!stderr_of(&o).contains("vulkan:"), "{}", stderr_of(&o));
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (64, 48));
     let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
@@ -524,7 +525,8 @@ fn cli_backend_gpu_end_to_end() {
         assert!(out.contains(k), "validate output lacks {k}: {out}");
     }
     assert!(diff.exists());
-    assert!(!stderr_of(&o).contains("vulkan error"), "{}", stderr_of(&o));
+    // The debug messenger's errors and warnings print as "error: vulkan: ...".
+    assert!(!stderr_of(&o).contains("vulkan:"), "{}", stderr_of(&o));
 
     // devices names the device and what each backend picks.
     let o = whitted().arg("devices").output().unwrap();
@@ -1063,6 +1065,60 @@ fn cli_device_faults_exit_4_with_one_line() {
     let o = run("no-such-fault");
     assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
     assert!(stderr_of(&o).contains("WHITTED_GPU_FAULT=no-such-fault"));
+}
+
+/// `--backend auto --device 0` with a device fault injected: the CPU
+/// mirror finishes the render (exit 0, the image, `"backend": "cpu"` in
+/// the stats) and one warning says so and why.
+#[test]
+fn cli_auto_finishes_on_the_cpu_mirror_after_a_fault() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for fault in [Fault::DeviceLost, Fault::FenceNeverSignals] {
+        let png = dir.path().join(format!("{}.png", fault.name()));
+        let json = dir.path().join(format!("{}.json", fault.name()));
+        let o = whitted()
+            .env("WHITTED_GPU_FAULT", fault.name())
+            .env("WHITTED_FENCE_TIMEOUT", "1")
+            .args([
+                "render",
+                "scenes/showcase.toml",
+                "--width",
+                "24",
+                "--height",
+                "18",
+                "--backend",
+                "auto",
+                "--device",
+                "0",
+                "--tile",
+                "8",
+                "-o",
+            ])
+            .arg(&png)
+            .arg("--stats")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let err = stderr_of(&o);
+        assert!(o.status.success(), "{fault:?}: {err}");
+        assert!(png.exists(), "{fault:?}");
+        let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        assert_eq!(s["backend"], "cpu", "{fault:?}");
+        let notes: Vec<&str> = err
+            .lines()
+            .filter(|l| l.starts_with("warning:") && l.contains("CPU mirror"))
+            .collect();
+        assert_eq!(notes.len(), 1, "{fault:?}: {err}");
+        let why = match fault {
+            Fault::DeviceLost => "VK_ERROR_DEVICE_LOST",
+            _ => "fence timeout",
+        };
+        assert!(notes[0].contains(why), "{err}");
+        assert!(!err.lines().any(|l| l.starts_with("error:")), "{err}");
+    }
 }
 
 /// WHITTED_PIPELINE_CACHE: a folder holding a corrupt cache file, or
