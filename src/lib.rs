@@ -6,6 +6,7 @@
 //! → `output::write`; `run::render` is the one entry every command and
 //! test calls (docs/architecture.md).
 
+pub mod bench;
 pub mod cli;
 pub mod constants;
 pub mod cpu;
@@ -17,8 +18,11 @@ pub mod gpu;
 pub mod metrics;
 pub mod output;
 pub mod pack;
+pub mod plot;
+pub mod povray;
 pub mod run;
 pub mod scene;
+pub mod sys;
 pub mod trace;
 
 pub use run::{render, Backend, RenderOptions, Rendered};

@@ -1,6 +1,6 @@
 //! `whitted export`: a scene as POV-Ray 3.7 (.pov) or NFF (.nff) text.
 
-use super::options::parse_weight;
+use super::options::{DepthOpts, SizeOpts};
 use super::Ui;
 use crate::error::user;
 use crate::files::{self, Dest, Output};
@@ -17,18 +17,12 @@ pub struct ExportArgs {
     /// standard output.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Image width written into the POV camera's aspect (default: the scene's).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub width: Option<u32>,
-    /// Image height (default: the scene's).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub height: Option<u32>,
-    /// Generations of secondary rays (POV-Ray: max_trace_level = this + 1).
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=crate::constants::MAX_DEPTH_LIMIT as i64))]
-    pub max_depth: u32,
-    /// Adaptive depth cut-off (POV-Ray: adc_bailout).
-    #[arg(long, default_value_t = 1.0 / 256.0, value_parser = parse_weight)]
-    pub min_weight: f32,
+    /// The image size written into the POV camera's aspect and the depth
+    /// (POV-Ray: max_trace_level = max depth + 1, adc_bailout = min weight).
+    #[command(flatten)]
+    pub size: SizeOpts,
+    #[command(flatten)]
+    pub depth: DepthOpts,
 }
 
 pub fn run(a: ExportArgs, _ui: Ui) -> Result<u8> {
@@ -48,10 +42,10 @@ pub fn run(a: ExportArgs, _ui: Ui) -> Result<u8> {
         Some("nff") => crate::export::to_nff(&scene).map_err(user)?,
         _ => crate::export::to_pov(
             &scene,
-            a.width.unwrap_or(scene.camera.width),
-            a.height.unwrap_or(scene.camera.height),
-            a.max_depth,
-            a.min_weight,
+            a.size.width.unwrap_or(scene.camera.width),
+            a.size.height.unwrap_or(scene.camera.height),
+            a.depth.max_depth,
+            a.depth.min_weight,
         )
         .map_err(user)?,
     };

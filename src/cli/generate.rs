@@ -10,7 +10,7 @@ use std::path::PathBuf;
 #[derive(Args)]
 pub struct GenerateArgs {
     /// Spheres scattered in the cube [-1,1]³, radius 0.45 × their mean
-    /// spacing, over a floor, lit by three lights (see src/gen.rs).
+    /// spacing, over a floor, lit by three lights (see src/gen/mod.rs).
     #[arg(long, default_value_t = 10_000, value_parser = clap::value_parser!(u64).range(1..=50_000_000))]
     pub count: u64,
     /// Seed of the placement (same seed, same scene).

@@ -5,6 +5,7 @@
 //!
 //! Exit codes: see `crate::error`.
 
+pub mod bench;
 pub mod devices;
 pub mod export;
 pub mod generate;
@@ -29,9 +30,10 @@ use std::time::{Duration, Instant};
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
-    /// More messages on stderr: -v notes and timings of each phase, -vv
-    /// debug messages (Vulkan's included), -vvv everything. RUST_LOG, when
-    /// set, overrides (e.g. RUST_LOG=gpu_allocator=debug).
+    /// More messages on stderr: -v adds whitted's debug messages (the time
+    /// of each phase, choices made), -vv other crates' and Vulkan's too,
+    /// -vvv everything. RUST_LOG, when set, overrides (e.g.
+    /// RUST_LOG=gpu_allocator=debug).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
     /// Errors only: no progress bars, notes or summaries on stderr.
@@ -68,8 +70,15 @@ pub enum Command {
     /// Example: whitted generate --count 100000 -o spheres-100k.nff
     Generate(generate::GenerateArgs),
     /// Convert a scene to POV-Ray 3.7 (.pov) or NFF (.nff), e.g. to time
-    /// POV-Ray on the same scene (scripts/povray-compare.sh).
+    /// POV-Ray on the same scene.
     Export(export::ExportArgs),
+    /// Time a suite of scenes on every backend (and POV-Ray 3.7 with --vs
+    /// povray): a warm-up, then N interleaved runs; median, min and max
+    /// wall and render time, Mrays/s over every ray, peak memory; a table,
+    /// CSV and plots (BENCHMARKS.md).
+    ///
+    /// Example: whitted bench --vs povray --runs 7 --csv bench.csv --plot bench.svg
+    Bench(bench::BenchArgs),
 }
 
 /// Global output settings every command sees.
@@ -95,6 +104,7 @@ pub fn run(cli: Cli) -> u8 {
         Command::Devices(a) => devices::run(a, ui),
         Command::Generate(a) => generate::run(a, ui),
         Command::Export(a) => export::run(a, ui),
+        Command::Bench(a) => bench::run(a, ui),
     };
     match r {
         Ok(code) => code,

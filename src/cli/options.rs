@@ -4,14 +4,20 @@ use crate::gpu::{self, GpuOptions};
 use crate::pack::{Sampling, Settings};
 use clap::Args;
 
+/// The image size (`render`, `validate`, `export`).
 #[derive(Args, Clone, Debug)]
-pub struct RenderOpts {
+pub struct SizeOpts {
     /// Image width in pixels (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub width: Option<u32>,
     /// Image height in pixels (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub height: Option<u32>,
+}
+
+/// How deep the ray tree goes (`render`, `validate`, `export`).
+#[derive(Args, Clone, Debug)]
+pub struct DepthOpts {
     /// Generations of reflection/refraction (0 = local model only).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=crate::constants::MAX_DEPTH_LIMIT as i64))]
     pub max_depth: u32,
@@ -19,6 +25,14 @@ pub struct RenderOpts {
     /// (largest channel) falls under this; 0 switches it off.
     #[arg(long, default_value_t = 1.0 / 256.0, value_parser = parse_weight)]
     pub min_weight: f32,
+}
+
+#[derive(Args, Clone, Debug)]
+pub struct RenderOpts {
+    #[command(flatten)]
+    pub size: SizeOpts,
+    #[command(flatten)]
+    pub depth: DepthOpts,
     /// Samples per pixel: stratified, jittered by a per-pixel hash
     /// (reproducible). 1 = the pixel centre.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4096))]
@@ -37,10 +51,10 @@ pub struct RenderOpts {
 impl RenderOpts {
     pub fn settings(&self) -> Settings {
         Settings {
-            width: self.width,
-            height: self.height,
-            max_depth: self.max_depth,
-            min_weight: self.min_weight,
+            width: self.size.width,
+            height: self.size.height,
+            max_depth: self.depth.max_depth,
+            min_weight: self.depth.min_weight,
             spp: self.spp,
             sampling: self.sampling,
             grid: self.grid,

@@ -117,6 +117,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "gpu": frame.device_seconds,
                 "total": total,
             },
+            "peak_memory_bytes": crate::sys::peak_memory(),
             "grid": {
                 "cells": packed.grid.cells,
                 "refs": packed.grid.refs,
