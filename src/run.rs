@@ -143,9 +143,11 @@ pub fn render_packed(
     }
 }
 
-/// A failure of the device itself (not of the scene or the options).
+/// A failure of the device itself (not of the scene or the options): the
+/// device's own faults (`GpuError::is_device_fault`: lost, out of memory,
+/// timed out, kernel refused) and any other failed Vulkan call.
 pub fn is_device_fault(e: &GpuError) -> bool {
-    matches!(e, GpuError::Vulkan { .. } | GpuError::Memory { .. })
+    e.is_device_fault() || matches!(e, GpuError::Vulkan { .. } | GpuError::Memory { .. })
 }
 
 /// A GPU error with its exit class: the user's (2), the device's (4) or

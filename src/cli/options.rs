@@ -122,6 +122,7 @@ impl GpuArgs {
             tile: self.tile,
             workgroup: self.workgroup,
             staging: false,
+            ..Default::default()
         }
     }
 }

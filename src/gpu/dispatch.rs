@@ -3,16 +3,49 @@
 //! The sample lattice is cut into tiles; each tile is one submission
 //! (zero the counters, dispatch, read them back), so no submission runs
 //! long enough to trip a driver watchdog and 32-bit counters cannot wrap.
+//! Every fence is waited for with the fence timeout (docs/gpu.md, "Device
+//! faults").
 
 use super::context::{Context, VkCheck};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
-use super::GpuError;
+use super::{Fault, GpuError};
 use ash::vk;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
+use std::time::Duration;
 
-/// Longest wait for one submission before giving up.
-const FENCE_TIMEOUT_NS: u64 = 600 * 1_000_000_000;
+/// After a fence wait times out, how much longer to wait (at most) for the
+/// submission to end before its handles are given up as in use forever.
+const GRACE: Duration = Duration::from_secs(5);
+
+/// What a submission does: names it in messages, and picks its timeout
+/// and whether an injected fault hits it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Work<'a> {
+    /// A staging copy of the named scene array.
+    Upload(&'a str),
+    /// The empty dispatch after which a driver that compiles a pipeline at
+    /// its first use (llvmpipe) has done so. How long a compile takes is
+    /// not the tiles' to bound, so this waits at least
+    /// `DEFAULT_FENCE_TIMEOUT` whatever the fence timeout.
+    Warmup,
+    /// Tile `index` (from 0) of `count`.
+    Tile { index: usize, count: usize },
+    /// A probe kernel's dispatch.
+    Probe,
+}
+
+impl std::fmt::Display for Work<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Work::Upload(name) => write!(f, "the upload of {name}"),
+            Work::Warmup => write!(f, "the pipeline warm-up"),
+            Work::Tile { index, count } => write!(f, "tile {} of {count}", index + 1),
+            Work::Probe => write!(f, "the probe dispatch"),
+        }
+    }
+}
 
 /// One command pool, one primary command buffer, a fence and (when the
 /// queue has timestamps) a two-entry query pool.
@@ -22,6 +55,10 @@ pub struct Commands {
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
     queries: vk::QueryPool,
+    /// `Fault::FenceNeverSignals`: the event the first dispatch waits on.
+    hang: vk::Event,
+    /// Tile and probe dispatches submitted so far.
+    dispatches: AtomicU32,
 }
 
 impl Commands {
@@ -33,6 +70,8 @@ impl Commands {
             cmd: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),
             queries: vk::QueryPool::null(),
+            hang: vk::Event::null(),
+            dispatches: AtomicU32::new(0),
         };
         // SAFETY: valid create infos on a live device; each handle is stored
         // at once so Drop releases it on an early return.
@@ -66,18 +105,40 @@ impl Commands {
                     )
                     .vk("vkCreateQueryPool")?;
             }
+            if ctx.injects(Fault::FenceNeverSignals) {
+                c.hang = d
+                    .create_event(&vk::EventCreateInfo::default(), None)
+                    .vk("vkCreateEvent")?;
+            }
         }
         Ok(c)
     }
 
-    /// Records `f` into the command buffer, submits it and waits.
+    /// Waits for the fence at most `t`.
+    fn wait(&self, t: Duration) -> Result<(), vk::Result> {
+        let ns = u64::try_from(t.as_nanos()).unwrap_or(u64::MAX);
+        // SAFETY: the fence is live and belongs to this device.
+        unsafe { self.ctx.device.wait_for_fences(&[self.fence], true, ns) }
+    }
+
+    /// Records `f` into the command buffer, submits it and waits for it
+    /// at most the fence timeout (see `Work::Warmup`). After a timeout the
+    /// work is given `GRACE` more to end; if it does not, the device is
+    /// marked hung and no handle of it is destroyed again. Injected
+    /// faults (`Fault::DeviceLost`, `Fault::FenceNeverSignals`) hit the
+    /// first tile or probe dispatch.
     pub fn run_once(
         &self,
+        work: Work,
         f: impl FnOnce(&ash::Device, vk::CommandBuffer),
     ) -> Result<(), GpuError> {
         let d = &self.ctx.device;
+        let first = matches!(work, Work::Tile { .. } | Work::Probe)
+            && self.dispatches.fetch_add(1, Ordering::SeqCst) == 0;
+        let hang = first && self.hang != vk::Event::null();
         // SAFETY: the command buffer is idle (the previous submission was
-        // waited for) and is recorded, submitted and waited for here.
+        // waited for) and is recorded and submitted here; the event (if
+        // any) is unsignalled, and only the host sets it.
         unsafe {
             d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
                 .vk("vkResetCommandBuffer")?;
@@ -87,6 +148,20 @@ impl Commands {
                     .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
             )
             .vk("vkBeginCommandBuffer")?;
+            if hang {
+                // Fault::FenceNeverSignals: everything after this waits for
+                // the host, which sets the event only once the fence wait
+                // below has timed out.
+                d.cmd_wait_events(
+                    self.cmd,
+                    &[self.hang],
+                    vk::PipelineStageFlags::HOST,
+                    vk::PipelineStageFlags::ALL_COMMANDS,
+                    &[],
+                    &[],
+                    &[],
+                );
+            }
             f(d, self.cmd);
             d.end_command_buffer(self.cmd).vk("vkEndCommandBuffer")?;
             let cmds = [self.cmd];
@@ -94,17 +169,44 @@ impl Commands {
             d.reset_fences(&[self.fence]).vk("vkResetFences")?;
             d.queue_submit(self.ctx.queue, &submit, self.fence)
                 .vk("vkQueueSubmit")?;
-            match d.wait_for_fences(&[self.fence], true, FENCE_TIMEOUT_NS) {
-                Ok(()) => Ok(()),
-                Err(vk::Result::TIMEOUT) => Err(GpuError::Internal(format!(
-                    "a submission ran over {} s; use a smaller --tile",
-                    FENCE_TIMEOUT_NS / 1_000_000_000
-                ))),
-                Err(result) => Err(GpuError::Vulkan {
-                    call: "vkWaitForFences",
-                    result,
-                }),
+        }
+        let mut timeout = self.ctx.settings.fence_timeout;
+        if work == Work::Warmup {
+            timeout = timeout.max(super::DEFAULT_FENCE_TIMEOUT);
+        }
+        match self.wait(timeout) {
+            // Fault::DeviceLost: the wait's result as a lost device gives it.
+            Ok(()) if first && self.ctx.injects(Fault::DeviceLost) => {
+                Err::<(), _>(vk::Result::ERROR_DEVICE_LOST).vk("vkWaitForFences")
             }
+            Ok(()) => Ok(()),
+            Err(vk::Result::TIMEOUT) => {
+                if hang {
+                    // The injected hang ends late, as a slow device would.
+                    // SAFETY: a host-settable event of this device.
+                    unsafe { d.set_event(self.hang) }.vk("vkSetEvent")?;
+                }
+                match self.wait(timeout.min(GRACE)) {
+                    Ok(()) => log::debug!(
+                        "{}: {work} finished after the fence timeout",
+                        self.ctx.info.name
+                    ),
+                    Err(r) => {
+                        self.ctx.hung.store(true, Ordering::SeqCst);
+                        log::error!(
+                            "{}: {work} never finished (vkWaitForFences: {r}); its Vulkan \
+                             objects are left for the process exit to free",
+                            self.ctx.info.name
+                        );
+                    }
+                }
+                Err(GpuError::Timeout {
+                    device: self.ctx.info.name.clone(),
+                    what: work.to_string(),
+                    timeout,
+                })
+            }
+            Err(result) => Err(result).vk("vkWaitForFences"),
         }
     }
 
@@ -204,10 +306,15 @@ impl Commands {
 
 impl Drop for Commands {
     fn drop(&mut self) {
-        // SAFETY: every submission was waited for; the pool frees its
-        // command buffer; null handles are ignored.
+        if self.ctx.is_hung() {
+            return;
+        }
+        // SAFETY: every submission was waited for (or the device is lost,
+        // where destroying is allowed); the pool frees its command buffer;
+        // null handles are ignored.
         unsafe {
             let d = &self.ctx.device;
+            d.destroy_event(self.hang, None);
             d.destroy_query_pool(self.queries, None);
             d.destroy_fence(self.fence, None);
             d.destroy_command_pool(self.pool, None);
