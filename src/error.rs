@@ -6,7 +6,7 @@
 //! | 1    | `validate`: the backends disagree beyond tolerance             |
 //! | 2    | bad input or usage: the message names the file, line and value |
 //! | 3    | internal error (a bug: please report it)                       |
-//! | 4    | the GPU failed (device lost, out of device memory, timed out)  |
+//! | 4    | the GPU failed: lost, out of memory, timed out, kernel refused  |
 //! | 130  | interrupted (SIGINT/SIGTERM); temporary files are removed      |
 //!
 //! Errors travel as `anyhow::Error`; a failure that is the user's to fix is

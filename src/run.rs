@@ -123,10 +123,7 @@ pub fn render_packed(
         Chosen::Gpu(g) => match g.render(packed, &opts.gpu, progress) {
             Ok(frame) => Ok(done(frame, Used::Gpu, g.info().name.clone())),
             Err(e) if opts.backend == Backend::Auto && is_device_fault(&e) => {
-                log::warn!(
-                    "{} failed ({e}); finishing the render on the CPU mirror",
-                    g.info().name
-                );
+                log::warn!("{e}; finishing the render on the CPU mirror");
                 drop(g);
                 let frame = render_cpu(packed, opts.threads, progress)?;
                 Ok(done(frame, Used::Cpu, "CPU mirror".into()))

@@ -23,7 +23,8 @@ use std::time::{Duration, Instant};
 ///
 /// Exit codes: 0 success, 1 validation over tolerance, 2 bad input or
 /// usage (the message names the file, line and column), 3 internal error,
-/// 4 the GPU failed (device lost, out of device memory, timed out),
+/// 4 the GPU failed (lost, out of memory, timed out, or its driver refused
+/// the kernel),
 /// 130 interrupted.
 #[derive(Parser)]
 #[command(name = "whitted", version, about, long_about)]

@@ -1,8 +1,10 @@
 //! Options shared by `render` and `validate`, and their parsers.
 
-use crate::gpu::{self, GpuOptions};
+use crate::gpu::{self, GpuOptions, PipelineCache};
 use crate::pack::{Counting, Preset, Sampling, Settings};
 use clap::Args;
+use std::path::PathBuf;
+use std::time::Duration;
 
 /// The image size (`render`, `validate`, `export`).
 #[derive(Args, Clone, Debug)]
@@ -112,6 +114,17 @@ pub struct GpuArgs {
     /// GPU workgroup shape (specialization constants of the shader).
     #[arg(long, value_name = "WxH", default_value = "8x8", value_parser = parse_workgroup)]
     pub workgroup: [u32; 2],
+    /// Where compiled GPU pipelines are cached (default: the
+    /// WHITTED_PIPELINE_CACHE variable, else $XDG_CACHE_HOME/whitted or
+    /// ~/.cache/whitted); `off`: no cache. A bad cache never fails a render.
+    #[arg(long, value_name = "DIR|off")]
+    pub pipeline_cache: Option<PathBuf>,
+    /// Longest wait for one GPU tile before the device is treated as hung
+    /// (exit 4, or the CPU mirror with --backend auto) [default: 600].
+    /// Each tile is at most 2^20 eye rays; on a slow device use a smaller
+    /// --tile rather than a longer wait.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub fence_timeout: Option<Duration>,
 }
 
 impl GpuArgs {
@@ -122,6 +135,12 @@ impl GpuArgs {
             tile: self.tile,
             workgroup: self.workgroup,
             staging: false,
+            pipeline_cache: match &self.pipeline_cache {
+                None => PipelineCache::Default,
+                Some(p) if p.as_os_str() == "off" => PipelineCache::Off,
+                Some(p) => PipelineCache::Dir(p.clone()),
+            },
+            fence_timeout: self.fence_timeout,
             ..Default::default()
         }
     }
@@ -142,6 +161,17 @@ pub fn parse_workgroup(s: &str) -> Result<[u32; 2], String> {
             .ok_or_else(bad)?;
     }
     Ok(out)
+}
+
+pub fn parse_seconds(s: &str) -> Result<Duration, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("must be a number of seconds, got '{s}'"))?;
+    if !v.is_finite() || v <= 0.0 || v > 1e6 {
+        return Err(format!("must be in (0, 1000000] seconds, got {s}"));
+    }
+    Ok(Duration::from_secs_f64(v))
 }
 
 pub fn parse_weight(s: &str) -> Result<f32, String> {
