@@ -13,6 +13,7 @@ pub mod cpu;
 pub mod error;
 pub mod export;
 pub mod files;
+pub mod fuzzing;
 pub mod gen;
 pub mod gpu;
 pub mod metrics;

@@ -1,0 +1,94 @@
+//! Replays the committed fuzz corpus (`fuzz/corpus/TARGET/`) and every past
+//! finding (`tests/fuzz_regressions/TARGET/`) through the fuzz targets'
+//! bodies, `whitted::fuzzing`: the code libFuzzer ran, under plain
+//! `cargo test`. None may panic; docs/reliability.md has the fuzzing runs.
+//! The findings' expected outcomes are asserted in `regressions` below.
+
+use std::path::{Path, PathBuf};
+use whitted::fuzzing::{self, Outcome};
+
+type Target = fn(&[u8]) -> Outcome;
+
+const TARGETS: [(&str, Target); 4] = [
+    ("toml", fuzzing::toml),
+    ("nff", fuzzing::nff),
+    ("obj", fuzzing::obj),
+    ("pack", fuzzing::pack),
+];
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The files of `dir`, sorted (none when it does not exist).
+fn files(dir: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut v: Vec<PathBuf> = entries
+        .map(|e| e.expect("a readable directory entry").path())
+        .filter(|p| p.is_file())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Runs every file of `dir` through `target`; returns the outcomes.
+fn replay(dir: &Path, target: Target) -> Vec<(PathBuf, Outcome)> {
+    files(dir)
+        .into_iter()
+        .map(|p| {
+            let data = std::fs::read(&p).unwrap();
+            let o = std::panic::catch_unwind(|| target(&data))
+                .unwrap_or_else(|_| panic!("{} panicked (see above)", p.display()));
+            (p, o)
+        })
+        .collect()
+}
+
+fn corpus(name: &str) {
+    let target = TARGETS.iter().find(|t| t.0 == name).unwrap().1;
+    let dir = root().join("fuzz/corpus").join(name);
+    let out = replay(&dir, target);
+    assert!(
+        out.len() >= 10,
+        "{}: {} inputs; the committed corpus is missing",
+        dir.display(),
+        out.len()
+    );
+    // A corpus that only ever reaches the reader's refusals tests little.
+    let rendered = out
+        .iter()
+        .filter(|(_, o)| matches!(o, Outcome::Rendered(_)))
+        .count();
+    assert!(rendered > 0, "{name}: no input of the corpus renders");
+}
+
+#[test]
+fn toml_corpus() {
+    corpus("toml");
+}
+
+#[test]
+fn nff_corpus() {
+    corpus("nff");
+}
+
+#[test]
+fn obj_corpus() {
+    corpus("obj");
+}
+
+#[test]
+fn pack_corpus() {
+    corpus("pack");
+}
+
+/// Every finding replays without a panic (the specific outcomes are
+/// asserted one by one below).
+#[test]
+fn regressions_replay() {
+    for (name, target) in TARGETS {
+        replay(&root().join("tests/fuzz_regressions").join(name), target);
+    }
+}
