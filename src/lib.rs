@@ -5,6 +5,7 @@
 //! Data flow: `scene::load` → `pack::pack` → `cpu::render` | `gpu::render`
 //! → `output::write`.
 
+pub mod budget;
 pub mod constants;
 pub mod cpu;
 pub mod export;

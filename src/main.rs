@@ -275,6 +275,7 @@ fn settings(o: &RenderOpts) -> Settings {
         spp: o.spp,
         sampling: o.sampling,
         grid: o.grid,
+        ..Settings::default()
     }
 }
 
@@ -308,7 +309,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let scene = scene::load(&a.scene).map_err(user)?;
     let t_load = t_start.elapsed().as_secs_f64();
     let t_build0 = Instant::now();
-    let packed = pack::pack(&scene, &settings(&a.opts));
+    let packed = pack::pack(&scene, &settings(&a.opts)).map_err(user)?;
     drop(scene);
     let t_build = t_build0.elapsed().as_secs_f64();
 
@@ -596,7 +597,7 @@ fn devices(a: DevicesArgs) -> Result<()> {
 
 fn validate(a: ValidateArgs) -> Result<bool> {
     let scene = scene::load(&a.scene).map_err(user)?;
-    let packed = pack::pack(&scene, &settings(&a.opts));
+    let packed = pack::pack(&scene, &settings(&a.opts)).map_err(user)?;
     drop(scene);
     let g = Gpu::new(&gpu_options(&a.gpu)).map_err(|e| user(anyhow!("validate: {e}")))?;
     let gpu_frame = g

@@ -41,7 +41,7 @@ fn spd_scenes_match_the_cpu_mirror() {
         };
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         let scene = whitted::scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-        let p = whitted::pack::pack(&scene, &settings);
+        let p = whitted::pack::pack(&scene, &settings).unwrap();
         let gf = g
             .render(&p, &GpuOptions::default(), &|_, _| {})
             .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
