@@ -144,7 +144,7 @@ impl Budget {
             total,
             limit: self.limit,
             origin: self.origin,
-            explicit_grid: need.explicit_grid,
+            need: *need,
         })
     }
 }
@@ -277,10 +277,9 @@ pub enum What {
     Scene,
     /// The packed primitives and their extra data.
     Primitives,
-    /// The grid's per-cell offsets and empty-space distances.
-    GridCells,
-    /// The grid's references (one per primitive per cell it overlaps).
-    GridRefs,
+    /// The grid: per-cell offsets and empty-space distances, and the
+    /// references (one per primitive per cell it overlaps).
+    Grid,
 }
 
 impl What {
@@ -290,7 +289,7 @@ impl What {
             What::Image => "the image needs",
             What::Scene => "the loaded scene needs",
             What::Primitives => "the packed primitives need",
-            What::GridCells | What::GridRefs => "the grid needs",
+            What::Grid => "the grid needs",
         }
     }
     /// The unit of the count ("for 2.4 G references").
@@ -299,8 +298,7 @@ impl What {
             What::Image => "samples",
             What::Scene => "objects",
             What::Primitives => "primitives",
-            What::GridCells => "cells",
-            What::GridRefs => "references",
+            What::Grid => "references",
         }
     }
 }
@@ -322,8 +320,8 @@ pub struct BudgetError {
     pub total: u64,
     pub limit: u64,
     pub origin: Origin,
-    /// The grid's resolution came from `--grid`.
-    pub explicit_grid: bool,
+    /// What it was estimated from.
+    pub need: Need,
 }
 
 impl BudgetError {
@@ -337,22 +335,17 @@ impl BudgetError {
 impl fmt::Display for BudgetError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let i = &self.item;
-        write!(
-            f,
-            "{} {} for {} {}",
-            i.what.needs(),
-            fmt_bytes(i.bytes),
-            fmt_count(i.count),
-            i.what.unit()
-        )?;
-        if i.bytes < self.total {
+        write!(f, "{} {} for ", i.what.needs(), fmt_bytes(i.bytes))?;
+        if i.what == What::Grid {
+            write!(f, "{} cells and ", fmt_count(self.need.cells))?;
+        }
+        write!(f, "{} {}", fmt_count(i.count), i.what.unit())?;
+        if fmt_bytes(i.bytes) != fmt_bytes(self.total) {
             write!(f, ", {} in all", fmt_bytes(self.total))?;
         }
         let hint = match i.what {
             What::Image => ", or render a smaller image",
-            What::GridCells | What::GridRefs if self.explicit_grid => {
-                ", or choose a coarser --grid"
-            }
+            What::Grid if self.need.explicit_grid => ", or choose a coarser --grid",
             _ => "",
         };
         write!(
@@ -495,14 +488,12 @@ impl Need {
                     .saturating_add(self.extra.saturating_mul(2 * EXTRA_BYTES)),
             },
             Item {
-                what: What::GridCells,
-                count: self.cells,
-                bytes: self.cells.saturating_mul(CELL_BUILD_BYTES),
-            },
-            Item {
-                what: What::GridRefs,
+                what: What::Grid,
                 count: self.refs,
-                bytes: self.refs.saturating_mul(2 * REF_BYTES),
+                bytes: self
+                    .cells
+                    .saturating_mul(CELL_BUILD_BYTES)
+                    .saturating_add(self.refs.saturating_mul(2 * REF_BYTES)),
             },
         ]
     }
@@ -642,14 +633,13 @@ mod tests {
             ..Need::default()
         };
         let e = Budget::bytes(1 << 30).check(&need).unwrap_err();
-        assert_eq!(e.item.what, What::GridRefs);
+        assert_eq!(e.item.what, What::Grid);
         assert_eq!(e.total, need.peak());
         let msg = e.to_string();
-        assert!(
-            msg.starts_with("the grid needs 18 GiB for 2.4 G references, ")
-                && msg.contains("in all (limit 1.0 GiB")
-                && msg.ends_with("raise it with --memory-limit, or choose a coarser --grid)"),
-            "{msg}"
+        assert_eq!(
+            msg,
+            "the grid needs 18 GiB for 1.0 M cells and 2.4 G references (limit 1.0 GiB, \
+             set by --memory-limit; raise it with --memory-limit, or choose a coarser --grid)"
         );
     }
 

@@ -469,11 +469,22 @@ fn drop_opaque_copies(prims: &mut Vec<(Prim, Bounds)>, opaque: &[bool]) -> usize
             j += 1;
         }
         if j - i > 1 {
+            // Copies of the run's first primitive need no hashing (a pile
+            // of one sphere is one long run of them).
+            let first = bytemuck::bytes_of(&prims[i].0);
             let mut seen = std::collections::HashSet::new();
             for k in i..j {
                 let p = &prims[k].0;
-                let op = opaque.get(p.material() as usize).copied().unwrap_or(false);
-                if op && !seen.insert(bytemuck::bytes_of(p)) {
+                if !opaque.get(p.material() as usize).copied().unwrap_or(false) {
+                    continue;
+                }
+                let bytes = bytemuck::bytes_of(p);
+                let copy = if k > i && bytes == first {
+                    true
+                } else {
+                    !seen.insert(bytes)
+                };
+                if copy {
                     keep[k] = false;
                     dropped += 1;
                 }
@@ -621,7 +632,8 @@ pub fn pack_with_progress(
 
     let mut b = Builder {
         origin,
-        bounded: Vec::new(),
+        // The census counts them (at most), so the array never regrows.
+        bounded: Vec::with_capacity(n_prims as usize),
         unbounded: Vec::new(),
         extra: Vec::new(),
         features: 0,
@@ -1069,11 +1081,11 @@ mod tests {
         let Err(PackError::Budget(e)) = pack(&s, &settings) else {
             panic!("not refused");
         };
-        assert_eq!(e.item.what, crate::budget::What::GridCells);
-        assert_eq!(e.item.count, 1023 * 1023 * 1023);
+        assert_eq!(e.item.what, crate::budget::What::Grid);
+        assert_eq!(e.need.cells, 1023 * 1023 * 1023);
         let msg = e.to_string();
         assert!(
-            msg.starts_with("the grid needs 15 GiB for 1.1 G cells"),
+            msg.starts_with("the grid needs 23 GiB for 1.1 G cells and 1.1 G references"),
             "{msg}"
         );
         assert!(
