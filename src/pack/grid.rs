@@ -26,10 +26,11 @@ use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, SKIP_MAX};
 pub const MAX_REFS: u64 = u32::MAX as u64;
 
 /// References per primitive above which the heuristic asks whether a
-/// coarser grid would do. Well-formed scenes stay far below it (measured,
-/// docs/method.md: 2 to 12 at the default density; a primitive no larger
-/// than a cell is in at most 8 cells).
-pub const REDUNDANT_REFS_PER_PRIM: u64 = 16;
+/// coarser grid would do. Well-formed scenes stay below it with a factor
+/// of two to spare (measured at the default density, docs/method.md: the
+/// SPD scenes 1.6 to 8.7, 1 M random spheres 11.9, scenes/showcase.toml
+/// 14.1; a primitive no larger than a cell is in at most 8 cells).
+pub const REDUNDANT_REFS_PER_PRIM: u64 = 32;
 
 /// Refining from the coarser grid must shorten the mean reference list
 /// per cell to at most this share of it to be worth its cells.
