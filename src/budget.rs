@@ -144,7 +144,7 @@ impl Budget {
             total,
             limit: self.limit,
             origin: self.origin,
-            need: *need,
+            need: Box::new(*need),
         })
     }
 }
@@ -321,7 +321,7 @@ pub struct BudgetError {
     pub limit: u64,
     pub origin: Origin,
     /// What it was estimated from.
-    pub need: Need,
+    pub need: Box<Need>,
 }
 
 impl BudgetError {

@@ -135,7 +135,7 @@ fn shader_layout_matches_rust() {
         (
             "Globals",
             fields!(Globals: cam_right, cam_up, cam_forward, background, ambient, grid_min,
-                    grid_max, grid_cell, grid_dims, counts, image, trace, params),
+                    grid_max, grid_cell, grid_dims, counts, image, trace, params, flags),
             size_of::<Globals>(),
         ),
         (

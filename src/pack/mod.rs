@@ -103,6 +103,57 @@ fn dims_text(d: &[u32; 3]) -> String {
     format!("{}x{}x{}", d[0], d[1], d[2])
 }
 
+/// How rays are counted (`RayStats`), set on the packed scene with
+/// `Packed::set_counting`. Both ways give the same image, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+pub enum Counting {
+    /// The rays whitted traces: a reflection ray where k_r > 0 (or on total
+    /// internal reflection), one shadow feeler counted per feeler cast.
+    #[default]
+    Traced,
+    /// As the SPD counts them (docs/spd.md): a surface with k_t > 0 also
+    /// spawns a reflection ray where k_r = 0 (weight 0: traced, with its
+    /// subtree, for the counts only; with `min_weight` > 0 such rays are
+    /// cut at once), and only feelers towards lights the surface faces
+    /// count as shadow rays.
+    Spd,
+}
+
+/// A named set of render settings (`--preset`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum Preset {
+    /// The SPD's testing procedure: 512 × 512 pixels, rays through the
+    /// pixel corners (513 × 513 eye rays), a tree depth of 5 counting the
+    /// eye ray (`max_depth` 4), no adaptive cut-off (`min_weight` 0), rays
+    /// counted as the SPD counts them.
+    Spd,
+}
+
+impl Preset {
+    /// The preset's settings (any of them may still be overridden).
+    pub fn settings(self) -> Settings {
+        match self {
+            Preset::Spd => Settings {
+                width: Some(512),
+                height: Some(512),
+                max_depth: 4,
+                min_weight: 0.0,
+                spp: 1,
+                sampling: Sampling::Corners,
+                grid: None,
+                budget: Budget::system(),
+            },
+        }
+    }
+
+    /// How the preset counts rays.
+    pub fn counting(self) -> Counting {
+        match self {
+            Preset::Spd => Counting::Spd,
+        }
+    }
+}
+
 /// What the grid build cost.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GridInfo {
@@ -134,6 +185,23 @@ impl Packed {
     }
     pub fn height(&self) -> u32 {
         self.globals.image[1]
+    }
+
+    /// Counts rays `c`'s way from now on (both backends).
+    pub fn set_counting(&mut self, c: Counting) {
+        let f = &mut self.globals.flags[0];
+        match c {
+            Counting::Traced => *f &= !FLAG_SPD_COUNTING,
+            Counting::Spd => *f |= FLAG_SPD_COUNTING,
+        }
+    }
+
+    pub fn counting(&self) -> Counting {
+        if self.globals.flags[0] & FLAG_SPD_COUNTING != 0 {
+            Counting::Spd
+        } else {
+            Counting::Traced
+        }
     }
 }
 
@@ -783,6 +851,7 @@ pub fn pack_with_progress(
             0.0,
             0.0,
         ],
+        flags: [0; 4],
     };
     let grid_info = GridInfo {
         cells: g.dims,
@@ -1142,6 +1211,23 @@ mod tests {
             panic!("not refused");
         };
         assert_eq!(e.item.what, crate::budget::What::Primitives);
+    }
+
+    #[test]
+    fn the_spd_preset_and_its_counting() {
+        let s = Preset::Spd.settings();
+        assert_eq!((s.width, s.height), (Some(512), Some(512)));
+        assert_eq!((s.max_depth, s.min_weight), (4, 0.0));
+        assert_eq!(s.sampling, Sampling::Corners);
+        let scene = crate::gen::random_spheres(10, 1);
+        let mut p = pack(&scene, &s).unwrap();
+        assert_eq!(p.counting(), Counting::Traced);
+        assert_eq!(p.globals.image, [512, 512, 1, SAMPLING_CORNERS]);
+        p.set_counting(Preset::Spd.counting());
+        assert_eq!(p.counting(), Counting::Spd);
+        assert_eq!(p.globals.flags[0], FLAG_SPD_COUNTING);
+        p.set_counting(Counting::Traced);
+        assert_eq!(p.globals.flags, [0; 4]);
     }
 
     #[test]
