@@ -230,6 +230,23 @@ impl Bar {
         self.bar.set_position(done);
     }
 
+    /// Names the current stage.
+    pub fn stage(&self, what: &str) {
+        if self.bar.message() != what {
+            self.bar.set_message(what.to_string());
+        }
+    }
+
+    /// Reports pack's grid stages (`pack::Stage`).
+    pub fn pack_stage(&self, stage: crate::pack::Stage, done: u64, total: u64) {
+        self.stage(match stage {
+            crate::pack::Stage::Sort => "ordering primitives",
+            crate::pack::Stage::Count => "counting grid references",
+            crate::pack::Stage::File => "filing the grid",
+        });
+        self.set(done, total);
+    }
+
     pub fn finish(&self) {
         self.bar.finish_and_clear();
     }

@@ -65,6 +65,13 @@ pub struct RenderOpts {
     /// Override the voxel grid resolution, e.g. 64x64x32.
     #[arg(long, value_parser = parse_grid, value_name = "NXxNYxNZ")]
     pub grid: Option<[u32; 3]>,
+    /// Memory the run may use: a size (512M, 4GiB, 1.5G; K/M/G/T are
+    /// powers of 1024, KB/MB/GB/TB of 1000) or a share of physical memory
+    /// (75%). A run whose estimate is over it is refused before anything
+    /// large is allocated (exit 2). Default: 50% of physical memory
+    /// (docs/budget.md).
+    #[arg(long, value_name = "SIZE", value_parser = crate::budget::Budget::parse)]
+    pub memory_limit: Option<crate::budget::Budget>,
     /// Worker threads for the CPU backend (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
@@ -84,6 +91,7 @@ impl RenderOpts {
             spp: self.spp.unwrap_or(base.spp),
             sampling: self.sampling.unwrap_or(base.sampling),
             grid: self.grid.or(base.grid),
+            budget: self.memory_limit.unwrap_or(base.budget),
         }
     }
 
