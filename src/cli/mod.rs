@@ -65,10 +65,11 @@ pub enum Command {
     /// maxComputeWorkGroupInvocations, subgroup size and whether it has
     /// timestamps (for device timings).
     Devices(devices::DevicesArgs),
-    /// Write a procedural scene (for benchmarks) as NFF: random spheres, or
-    /// a sphereflake.
+    /// Write a procedural scene as NFF: one of the SPD's seven scenes at any
+    /// size factor, random spheres, or a sphereflake.
     ///
-    /// Example: whitted generate --count 100000 -o spheres-100k.nff
+    /// Examples: whitted generate teapot --size 12 -o teapot.nff;
+    /// whitted generate --count 100000 -o spheres-100k.nff
     Generate(generate::GenerateArgs),
     /// Convert a scene to POV-Ray 3.7 (.pov) or NFF (.nff), e.g. to time
     /// POV-Ray on the same scene.

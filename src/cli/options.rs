@@ -43,11 +43,8 @@ impl DepthOpts {
 
 #[derive(Args, Clone, Debug)]
 pub struct RenderOpts {
-    /// A named set of settings; options given beside it override it.
-    /// `spd`: the SPD's testing procedure (docs/spd.md): 512x512, corner
-    /// rays (513x513), tree depth 5 counting the eye ray (--max-depth 4),
-    /// no adaptive cut-off (--min-weight 0), rays counted as the SPD counts
-    /// them.
+    /// A named set of settings (docs/spd.md); options given beside it
+    /// override it.
     #[arg(long, value_enum)]
     pub preset: Option<Preset>,
     #[command(flatten)]
