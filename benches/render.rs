@@ -23,7 +23,7 @@ fn packed(s: &scene::Scene, w: u32, h: u32) -> Packed {
         height: Some(h),
         ..Settings::default()
     };
-    pack::pack(s, &settings)
+    pack::pack(s, &settings).expect("the bench scenes fit")
 }
 
 fn rays(c: &mut Criterion) {

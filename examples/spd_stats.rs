@@ -80,7 +80,7 @@ fn main() {
     for s in scenes {
         let size = size.unwrap_or(published_size(s));
         let scene = spd::generate(s, Some(size)).unwrap();
-        let mut p = pack::pack(&scene, &Preset::Spd.settings());
+        let mut p = pack::pack(&scene, &Preset::Spd.settings()).expect("fits");
         p.set_counting(counting);
         let f = whitted::cpu::render(&p, &|_, _| {});
         let RayStats {

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The whole test suite. Installs lavapipe (Mesa's CPU Vulkan driver), the
-# Khronos validation layer and POV-Ray 3.7 first when they are missing and
+# Khronos validation layer, POV-Ray 3.7 and a font for the charts first when they are missing and
 # this user can (root with apt-get), so the GPU tests and the POV-Ray
 # comparisons (tests/povray.rs) run on any machine; then runs every test
 # with WHITTED_REQUIRE_GPU=1 and WHITTED_REQUIRE_POVRAY=1, which make those
@@ -14,6 +14,8 @@ if ! have_icd || ! have_layer; then
   need+=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers)
 fi
 command -v povray >/dev/null || need+=(povray)
+# The charts' text (src/plot.rs) needs a TrueType font.
+ls /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf >/dev/null 2>&1 || need+=(fonts-dejavu-core)
 if [ ${#need[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
     echo "test.sh: installing ${need[*]}" >&2

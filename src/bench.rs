@@ -59,6 +59,11 @@ impl Engine {
 pub struct Sample {
     pub wall: f64,
     pub render: Option<f64>,
+    /// Reading the scene and building the packed data and the grid.
+    pub prep: Option<f64>,
+    /// Intersection tests and grid cells visited, per ray.
+    pub tests_per_ray: Option<f64>,
+    pub cells_per_ray: Option<f64>,
     pub rays: Option<u64>,
     pub peak: Option<u64>,
 }
@@ -104,6 +109,10 @@ pub struct Row {
     pub runs: usize,
     pub wall: Summary,
     pub render: Option<Summary>,
+    /// Preprocessing: reading and building (the SPD reports it apart).
+    pub prep: Option<Summary>,
+    pub tests_per_ray: Option<f64>,
+    pub cells_per_ray: Option<f64>,
     pub rays: Option<u64>,
     pub mrays_per_s: Option<f64>,
     pub peak_bytes: Option<u64>,
@@ -281,13 +290,28 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
             )
             .with_context(|| format!("{}: not JSON", stats.display()))?;
             let rays = &j["rays"];
-            let total = ["eye", "reflect", "refract", "shadow"]
+            let total: u64 = ["eye", "reflect", "refract", "shadow"]
                 .iter()
                 .map(|k| rays[k].as_u64().unwrap_or(0))
                 .sum();
             Ok(Sample {
                 wall,
                 render: j["seconds"]["render"].as_f64(),
+                prep: match (
+                    j["seconds"]["load"].as_f64(),
+                    j["seconds"]["build"].as_f64(),
+                ) {
+                    (Some(l), Some(b)) => Some(l + b),
+                    _ => None,
+                },
+                tests_per_ray: j["work"]["intersection_tests"]
+                    .as_u64()
+                    .filter(|_| total > 0)
+                    .map(|t| t as f64 / total as f64),
+                cells_per_ray: j["work"]["cells_visited"]
+                    .as_u64()
+                    .filter(|_| total > 0)
+                    .map(|c| c as f64 / total as f64),
                 rays: Some(total),
                 peak: j["peak_memory_bytes"].as_u64().or(polled),
             })
@@ -323,6 +347,9 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
             Ok(Sample {
                 wall,
                 render: None,
+                prep: None,
+                tests_per_ray: None,
+                cells_per_ray: None,
                 rays: None,
                 peak,
             })
@@ -427,6 +454,8 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<Vec<Row>> {
             let wall = wall_of(e).ok_or_else(|| anyhow!("no runs"))?;
             let renders: Vec<f64> = s.iter().filter_map(|x| x.render).collect();
             let render = Summary::of(&renders);
+            let preps: Vec<f64> = s.iter().filter_map(|x| x.prep).collect();
+            let last = s.last();
             let rays = s.iter().filter_map(|x| x.rays).max();
             let (psnr, flip) = match (engine, pov_index) {
                 (Engine::Whitted { .. }, Some(p)) => {
@@ -448,6 +477,9 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<Vec<Row>> {
                 runs: s.len(),
                 wall,
                 render,
+                prep: Summary::of(&preps),
+                tests_per_ray: last.and_then(|x| x.tests_per_ray),
+                cells_per_ray: last.and_then(|x| x.cells_per_ray),
                 rays,
                 mrays_per_s: match (rays, render) {
                     (Some(r), Some(t)) if t.median > 0.0 => Some(r as f64 / t.median / 1e6),
@@ -480,6 +512,7 @@ pub fn table(rows: &[Row]) -> String {
         "size",
         "engine",
         "wall s (min-max)",
+        "prep s",
         "render s",
         "Mrays/s",
         "peak MB",
@@ -495,6 +528,7 @@ pub fn table(rows: &[Row]) -> String {
             format!("{}x{}", r.width, r.height),
             r.engine.clone(),
             format!("{:.3} ({:.3}-{:.3})", r.wall.median, r.wall.min, r.wall.max),
+            opt(r.prep, |s| format!("{:.3}", s.median)),
             opt(r.render, |s| format!("{:.3}", s.median)),
             opt(r.mrays_per_s, |m| format!("{m:.2}")),
             opt(r.peak_bytes, |b| format!("{:.0}", b as f64 / 1e6)),
@@ -549,6 +583,7 @@ pub fn csv(rows: &[Row]) -> Result<String> {
         "wall_median_s",
         "wall_min_s",
         "wall_max_s",
+        "prep_median_s",
         "render_median_s",
         "render_min_s",
         "render_max_s",
@@ -558,6 +593,8 @@ pub fn csv(rows: &[Row]) -> Result<String> {
         "povray_over_this",
         "psnr_vs_povray_db",
         "flip_vs_povray",
+        "tests_per_ray",
+        "cells_per_ray",
     ])?;
     let o = |v: Option<f64>| v.map(|x| format!("{x}")).unwrap_or_default();
     for r in rows {
@@ -572,6 +609,7 @@ pub fn csv(rows: &[Row]) -> Result<String> {
             r.wall.median.to_string(),
             r.wall.min.to_string(),
             r.wall.max.to_string(),
+            o(r.prep.map(|s| s.median)),
             o(r.render.map(|s| s.median)),
             o(r.render.map(|s| s.min)),
             o(r.render.map(|s| s.max)),
@@ -581,6 +619,8 @@ pub fn csv(rows: &[Row]) -> Result<String> {
             o(r.povray_over_this),
             o(r.psnr_vs_povray),
             o(r.flip_vs_povray),
+            o(r.tests_per_ray),
+            o(r.cells_per_ray),
         ])?;
     }
     Ok(String::from_utf8(
@@ -784,6 +824,9 @@ mod tests {
                 max: 0.31,
             },
             render: Summary::of(&[0.2]),
+            prep: Summary::of(&[0.05]),
+            tests_per_ray: Some(5.5),
+            cells_per_ray: Some(9.0),
             rays: Some(1_000_000),
             mrays_per_s: Some(5.0),
             peak_bytes: Some(20_000_000),

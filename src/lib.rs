@@ -7,6 +7,7 @@
 //! test calls (docs/architecture.md).
 
 pub mod bench;
+pub mod budget;
 pub mod cli;
 pub mod constants;
 pub mod cpu;

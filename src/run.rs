@@ -77,9 +77,20 @@ pub struct Rendered {
 pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
 /// Packs `scene` for `settings`, counting rays as `counting` says;
-/// problems with the scene or the settings are the user's (exit 2).
+/// problems with the scene or the settings, and a run over the memory
+/// budget, are the user's (exit 2).
 pub fn pack(scene: &Scene, settings: &Settings, counting: Counting) -> Result<Packed> {
-    let mut p = pack::pack(scene, settings);
+    pack_with_progress(scene, settings, counting, &|_, _, _| {})
+}
+
+/// [`pack`] reporting each stage of the grid build (`pack::Stage`).
+pub fn pack_with_progress(
+    scene: &Scene,
+    settings: &Settings,
+    counting: Counting,
+    progress: pack::Progress,
+) -> Result<Packed> {
+    let mut p = pack::pack_with_progress(scene, settings, progress).map_err(user)?;
     p.set_counting(counting);
     Ok(p)
 }

@@ -103,7 +103,7 @@ fn measure(c: &Case) -> Measured {
         sampling: c.sampling,
         ..Default::default()
     };
-    let mut ours = cpu::render(&pack::pack(&c.scene, &settings), &|_, _| {});
+    let mut ours = cpu::render(&pack::pack(&c.scene, &settings).unwrap(), &|_, _| {});
     // POV-Ray clips to [0, 1], as any 8- or 16-bit file does.
     for p in &mut ours.pixels {
         *p = p.map(|v| v.clamp(0.0, 1.0));

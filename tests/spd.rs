@@ -374,7 +374,7 @@ fn nff_round_trip_keeps_every_primitive() {
 fn every_scene_packs_and_renders() {
     for s in SpdScene::ALL {
         let scene = spd::generate(s, Some(2)).unwrap();
-        let p = pack::pack(&scene, &common::small(12, 12));
+        let p = pack::pack(&scene, &common::small(12, 12)).unwrap();
         assert_eq!(p.prims.len(), scene.objects.len(), "{s}");
         let f = whitted::cpu::render(&p, &|_, _| {});
         assert_eq!(f.stats.eye, 144, "{s}");
@@ -403,7 +403,7 @@ fn spd_counting_changes_counts_not_pixels() {
         height: Some(40),
         ..pack::Preset::Spd.settings()
     };
-    let plain = pack::pack(&scene, &settings);
+    let plain = pack::pack(&scene, &settings).unwrap();
     let mut spd = plain.clone();
     spd.set_counting(pack::Counting::Spd);
     let a = whitted::cpu::render(&plain, &|_, _| {});

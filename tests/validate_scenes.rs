@@ -22,7 +22,7 @@ fn spd_scenes_match_the_cpu_mirror() {
     let mut failures = Vec::new();
     for s in SpdScene::ALL {
         let scene = spd::generate(s, None).unwrap();
-        let mut p = whitted::pack::pack(&scene, &settings);
+        let mut p = whitted::pack::pack(&scene, &settings).unwrap();
         p.set_counting(Preset::Spd.counting());
         // llvmpipe's loop budget (docs/gpu.md) is spent on gears with the
         // SPD's extra rays at 8×8 workgroups; 1×1 ones are within it, as the

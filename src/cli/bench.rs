@@ -49,7 +49,8 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', value_parser = ["cpu", "gpu"])]
     pub backends: Vec<String>,
     /// Also render each scene with POV-Ray 3.7 (exported by `whitted
-    /// export`, same size and depth, all cores, no anti-aliasing),
+    /// export`, same size and depth, all cores, no anti-aliasing: pixel
+    /// centres, or the corner rays of --preset spd),
     /// interleaved with ours, and report the time ratio and the image
     /// difference (PSNR, mean FLIP).
     #[arg(long, value_name = "povray", value_parser = ["povray"])]

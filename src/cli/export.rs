@@ -17,6 +17,11 @@ pub struct ExportArgs {
     /// standard output.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Settings as `render --preset` takes them (the size, depth and
+    /// cut-off written into the .pov file; POV-Ray has no corner sampling
+    /// setting in the scene: `whitted bench` passes it on the command line).
+    #[arg(long, value_enum)]
+    pub preset: Option<crate::pack::Preset>,
     /// The image size written into the POV camera's aspect and the depth
     /// (POV-Ray: max_trace_level = max depth + 1, adc_bailout = min weight).
     #[command(flatten)]
@@ -38,13 +43,17 @@ pub fn run(a: ExportArgs, _ui: Ui) -> Result<u8> {
     .map_err(user)?;
     let scene = scene::load(&a.scene).map_err(user)?;
     let dest = Dest::new(&a.output);
-    let (max_depth, min_weight) = a.depth.resolve(&crate::pack::Settings::default());
+    let base = a
+        .preset
+        .map(crate::pack::Preset::settings)
+        .unwrap_or_default();
+    let (max_depth, min_weight) = a.depth.resolve(&base);
     let text = match files::extension(&a.output).as_deref() {
         Some("nff") => crate::export::to_nff(&scene).map_err(user)?,
         _ => crate::export::to_pov(
             &scene,
-            a.size.width.unwrap_or(scene.camera.width),
-            a.size.height.unwrap_or(scene.camera.height),
+            a.size.width.or(base.width).unwrap_or(scene.camera.width),
+            a.size.height.or(base.height).unwrap_or(scene.camera.height),
             max_depth,
             min_weight,
         )

@@ -65,10 +65,11 @@ pub enum Command {
     /// maxComputeWorkGroupInvocations, subgroup size and whether it has
     /// timestamps (for device timings).
     Devices(devices::DevicesArgs),
-    /// Write a procedural scene (for benchmarks) as NFF: random spheres, or
-    /// a sphereflake.
+    /// Write a procedural scene as NFF: one of the SPD's seven scenes at any
+    /// size factor, random spheres, or a sphereflake.
     ///
-    /// Example: whitted generate --count 100000 -o spheres-100k.nff
+    /// Examples: whitted generate teapot --size 12 -o teapot.nff;
+    /// whitted generate --count 100000 -o spheres-100k.nff
     Generate(generate::GenerateArgs),
     /// Convert a scene to POV-Ray 3.7 (.pov) or NFF (.nff), e.g. to time
     /// POV-Ray on the same scene.
@@ -228,6 +229,23 @@ impl Bar {
         }
         self.bar.set_length(total);
         self.bar.set_position(done);
+    }
+
+    /// Names the current stage.
+    pub fn stage(&self, what: &str) {
+        if self.bar.message() != what {
+            self.bar.set_message(what.to_string());
+        }
+    }
+
+    /// Reports pack's grid stages (`pack::Stage`).
+    pub fn pack_stage(&self, stage: crate::pack::Stage, done: u64, total: u64) {
+        self.stage(match stage {
+            crate::pack::Stage::Sort => "ordering primitives",
+            crate::pack::Stage::Count => "counting grid references",
+            crate::pack::Stage::File => "filing the grid",
+        });
+        self.set(done, total);
     }
 
     pub fn finish(&self) {

@@ -43,11 +43,8 @@ impl DepthOpts {
 
 #[derive(Args, Clone, Debug)]
 pub struct RenderOpts {
-    /// A named set of settings; options given beside it override it.
-    /// `spd`: the SPD's testing procedure (docs/spd.md): 512x512, corner
-    /// rays (513x513), tree depth 5 counting the eye ray (--max-depth 4),
-    /// no adaptive cut-off (--min-weight 0), rays counted as the SPD counts
-    /// them.
+    /// A named set of settings (docs/spd.md); options given beside it
+    /// override it.
     #[arg(long, value_enum)]
     pub preset: Option<Preset>,
     #[command(flatten)]
@@ -65,6 +62,13 @@ pub struct RenderOpts {
     /// Override the voxel grid resolution, e.g. 64x64x32.
     #[arg(long, value_parser = parse_grid, value_name = "NXxNYxNZ")]
     pub grid: Option<[u32; 3]>,
+    /// Memory the run may use: a size (512M, 4GiB, 1.5G; K/M/G/T are
+    /// powers of 1024, KB/MB/GB/TB of 1000) or a share of physical memory
+    /// (75%). A run whose estimate is over it is refused before anything
+    /// large is allocated (exit 2). Default: 50% of physical memory
+    /// (docs/budget.md).
+    #[arg(long, value_name = "SIZE", value_parser = crate::budget::Budget::parse)]
+    pub memory_limit: Option<crate::budget::Budget>,
     /// Worker threads for the CPU backend (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
@@ -84,6 +88,7 @@ impl RenderOpts {
             spp: self.spp.unwrap_or(base.spp),
             sampling: self.sampling.unwrap_or(base.sampling),
             grid: self.grid.or(base.grid),
+            budget: self.memory_limit.unwrap_or(base.budget),
         }
     }
 

@@ -91,7 +91,12 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         counting: a.opts.counting(),
     };
     let t_pack = Instant::now();
-    let packed = run::pack(&scene, &opts.settings, opts.counting)?;
+    let bar = Bar::new(ui, "packing");
+    let packed = run::pack_with_progress(&scene, &opts.settings, opts.counting, &|s, d, t| {
+        bar.pack_stage(s, d, t)
+    });
+    bar.finish();
+    let packed = packed?;
     drop(scene);
     let t_build = t_pack.elapsed().as_secs_f64();
     log::debug!("packed in {t_build:.3} s");
@@ -125,6 +130,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "refs": packed.grid.refs,
                 "bytes": packed.grid.bytes,
                 "build_seconds": packed.grid.seconds,
+                "duplicates": packed.grid.duplicates,
             },
         });
         files::write_bytes(

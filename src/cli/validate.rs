@@ -51,7 +51,13 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
     }
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
     let scene = scene::load(&a.scene).map_err(user)?;
-    let packed = run::pack(&scene, &a.opts.settings(), a.opts.counting())?;
+    let bar = super::Bar::new(ui, "packing");
+    let packed =
+        run::pack_with_progress(&scene, &a.opts.settings(), a.opts.counting(), &|s, d, t| {
+            bar.pack_stage(s, d, t)
+        });
+    bar.finish();
+    let packed = packed?;
     drop(scene);
     let gopts = a.gpu.options();
     let g = Gpu::new(&gopts).map_err(|e| user(anyhow!("validate: {e}")))?;

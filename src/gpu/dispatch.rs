@@ -332,11 +332,14 @@ pub struct Tile {
 }
 
 /// Cuts a `lw × lh` lattice into tiles of at most `tile × tile` samples,
-/// row by row; rows shrink so one tile traces at most `max_samples` eye
-/// rays (each pixel of a centre lattice traces `spp`).
+/// row by row; tiles shrink (rows first, then width) so one tile traces at
+/// most `max_samples` eye rays (each pixel of a centre lattice traces
+/// `spp`), or one row of one pixel where a single pixel's samples exceed it.
 pub fn tiles(lw: u32, lh: u32, tile: u32, spp: u32, max_samples: u64) -> Vec<Tile> {
-    let tw = tile.clamp(1, lw.max(1));
-    let rows_cap = (max_samples / (tw as u64 * spp.max(1) as u64)).max(1);
+    let spp = spp.max(1) as u64;
+    let width_cap = (max_samples / spp).max(1);
+    let tw = (tile.clamp(1, lw.max(1)) as u64).min(width_cap) as u32;
+    let rows_cap = (max_samples / (tw as u64 * spp)).max(1);
     let th = (tile as u64).min(rows_cap).clamp(1, lh.max(1) as u64) as u32;
     let mut out = Vec::new();
     let mut y = 0;
@@ -351,6 +354,17 @@ pub fn tiles(lw: u32, lh: u32, tile: u32, spp: u32, max_samples: u64) -> Vec<Til
         y += h;
     }
     out
+}
+
+/// Most eye rays one tile may trace so that none of the shader's 32-bit
+/// ray counters can wrap within it: an eye ray's tree has at most
+/// 2^(depth+1) − 1 rays, each casting at most one feeler per light, so a
+/// sample adds at most (2^(depth+1) − 1) · max(lights, 1) to a counter.
+/// Never more than `cap` (keeps submissions short), never less than 1.
+pub fn max_tile_samples(max_depth: u32, lights: u32, cap: u64) -> u64 {
+    let tree = (1u64 << (max_depth.min(62) + 1)) - 1;
+    let per_sample = tree.saturating_mul(lights.max(1) as u64);
+    (u32::MAX as u64 / per_sample).clamp(1, cap.max(1))
 }
 
 /// The order in which a dispatch of `n` workgroups visits its tile:
@@ -418,7 +432,7 @@ mod tests {
             let mut seen = vec![0u8; (lw * lh) as usize];
             for tl in &ts {
                 assert!(tl.w >= 1 && tl.h >= 1 && tl.w <= t && tl.h <= t);
-                assert!(tl.w as u64 * tl.h as u64 * spp as u64 <= (1 << 16) || tl.h == 1);
+                assert!(tl.w as u64 * tl.h as u64 * spp as u64 <= (1 << 16));
                 for y in tl.y0..tl.y0 + tl.h {
                     for x in tl.x0..tl.x0 + tl.w {
                         seen[(y * lw + x) as usize] += 1;
@@ -427,5 +441,44 @@ mod tests {
             }
             assert!(seen.iter().all(|&s| s == 1), "{lw}x{lh} tile {t}");
         }
+    }
+
+    /// At the options' limits no tile traces more eye rays than asked,
+    /// and the tile count is exact in 64 bits.
+    #[test]
+    fn tiles_at_the_limits_of_the_options() {
+        // 4096 spp, --tile 16384: the width shrinks too (256 × 4096 = 2^20).
+        let ts = tiles(65536, 2, 16384, 4096, 1 << 20);
+        assert!(ts.iter().all(|t| t.w as u64 * t.h as u64 * 4096 <= 1 << 20));
+        assert_eq!(ts.len(), 65536 / 256 * 2);
+        // a single pixel's samples over the cap: one pixel per tile
+        let ts = tiles(3, 2, 256, 4096, 1000);
+        assert_eq!(ts.len(), 6);
+        assert!(ts.iter().all(|t| t.w == 1 && t.h == 1));
+        // the largest corner lattice in default tiles
+        let n = 65537u64.div_ceil(256);
+        let ts = tiles(65537, 65537, 256, 1, 1 << 20);
+        assert_eq!(ts.len() as u64, n * n);
+        let covered: u64 = ts.iter().map(|t| t.w as u64 * t.h as u64).sum();
+        assert_eq!(covered, 65537 * 65537);
+    }
+
+    #[test]
+    fn tile_samples_keep_counters_from_wrapping() {
+        for depth in 0..=crate::constants::MAX_DEPTH_LIMIT {
+            for lights in [0u32, 1, 3, 8, 1000, 100_000, u32::MAX] {
+                let m = max_tile_samples(depth, lights, 1 << 20);
+                assert!((1..=1 << 20).contains(&m));
+                let per = ((1u64 << (depth + 1)) - 1) * lights.max(1) as u64;
+                // m samples cannot wrap, unless one sample alone could
+                assert!(m as u128 * per as u128 <= u32::MAX as u128 || m == 1);
+            }
+        }
+        // the defaults (depth 5, a few lights) keep the full cap
+        assert_eq!(max_tile_samples(5, 3, 1 << 20), 1 << 20);
+        assert_eq!(
+            max_tile_samples(16, 8, 1 << 20),
+            u32::MAX as u64 / (131_071 * 8)
+        );
     }
 }

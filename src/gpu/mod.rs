@@ -225,9 +225,9 @@ pub(crate) fn mib(bytes: u64) -> String {
 pub const DEFAULT_TILE: u32 = 256;
 /// Default workgroup shape (specialization constants 0 and 1).
 pub const DEFAULT_WORKGROUP: [u32; 2] = [8, 8];
-/// Most eye rays one tile traces: keeps every submission short and the
-/// shader's 32-bit counters far from wrapping (a sample spawns at most
-/// 2^(depth+1) rays each with one feeler per light).
+/// Most eye rays one tile traces: keeps every submission short. Deep
+/// trees and many lights lower it further (`dispatch::max_tile_samples`)
+/// so the shader's 32-bit ray counters cannot wrap within a tile.
 pub const MAX_TILE_SAMPLES: u64 = 1 << 20;
 /// Longest wait for one submission (one tile) when neither
 /// `GpuOptions::fence_timeout` nor `WHITTED_FENCE_TIMEOUT` says otherwise.
@@ -582,33 +582,9 @@ impl Gpu {
 
     /// Refuses, with the reason, what the device cannot hold: an array over
     /// `maxStorageBufferRange`, or more memory than its largest heap.
-    fn check_fits(&self, packed: &Packed, out_bytes: u64) -> Result<(), GpuError> {
+    fn check_fits(&self, packed: &Packed, out_samples: u64) -> Result<(), GpuError> {
         let i = &self.ctx.info;
-        let arrays: [(&str, u64); 8] = [
-            ("globals", std::mem::size_of_val(&packed.globals) as u64),
-            (
-                "prims",
-                std::mem::size_of_val(packed.prims.as_slice()) as u64,
-            ),
-            (
-                "extra",
-                std::mem::size_of_val(packed.extra.as_slice()) as u64,
-            ),
-            (
-                "materials",
-                std::mem::size_of_val(packed.materials.as_slice()) as u64,
-            ),
-            (
-                "lights",
-                std::mem::size_of_val(packed.lights.as_slice()) as u64,
-            ),
-            (
-                "cell_start",
-                std::mem::size_of_val(packed.cell_start.as_slice()) as u64,
-            ),
-            ("refs", std::mem::size_of_val(packed.refs.as_slice()) as u64),
-            ("output samples", out_bytes),
-        ];
+        let arrays = crate::budget::gpu_buffers(packed, out_samples);
         for (name, bytes) in arrays {
             if bytes > i.max_storage_buffer_range {
                 let hint = match name {
@@ -743,7 +719,7 @@ impl Gpu {
         let (lw, lh) = if corners { (w + 1, h + 1) } else { (w, h) };
         let n = lw as u64 * lh as u64;
         let out_bytes = n * 16;
-        self.check_fits(packed, out_bytes)?;
+        self.check_fits(packed, n)?;
         self.check_loops(packed)?;
         let kernel = self.kernel(
             name,
@@ -784,7 +760,8 @@ impl Gpu {
             })?;
         }
         let spp = if corners { 1 } else { g.image[2] };
-        let tiles = dispatch::tiles(lw, lh, opts.tile, spp, MAX_TILE_SAMPLES);
+        let max_samples = dispatch::max_tile_samples(g.trace[0], g.counts[2], MAX_TILE_SAMPLES);
+        let tiles = dispatch::tiles(lw, lh, opts.tile, spp, max_samples);
         let t0 = Instant::now();
         let mut stats = RayStats::default();
         let mut device_seconds: Option<f64> = None;

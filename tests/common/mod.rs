@@ -121,13 +121,13 @@ pub fn repo() -> PathBuf {
 
 pub fn load(path: &Path, settings: &Settings) -> Packed {
     let s = whitted::scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-    pack::pack(&s, settings)
+    pack::pack(&s, settings).unwrap()
 }
 
 pub fn parse(text: &str, settings: &Settings) -> Packed {
     let s =
         whitted::scene::parse_str(text, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"));
-    pack::pack(&s, settings)
+    pack::pack(&s, settings).unwrap()
 }
 
 pub fn small(w: u32, h: u32) -> Settings {
