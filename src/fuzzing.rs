@@ -20,6 +20,7 @@
 //! scene, written out as TOML, read back, packed and rendered with
 //! arbitrary settings).
 
+use crate::budget::Budget;
 use crate::pack::{self as packing, Sampling, Settings};
 use crate::scene::{self, Scene, Shape};
 use arbitrary::{Arbitrary, Unstructured};
@@ -32,6 +33,10 @@ pub const MAX_SIDE: u32 = 8;
 
 /// Deepest ray tree the targets render.
 pub const MAX_DEPTH: u32 = 3;
+
+/// The memory budget the targets pack under (`--memory-limit 32M`): a
+/// small input that asks for a huge grid is refused, not allocated.
+pub const MEMORY_LIMIT: u64 = 32 << 20;
 
 /// What one input came to.
 #[derive(Clone, Debug, PartialEq)]
@@ -92,6 +97,14 @@ pub fn pack(data: &[u8]) -> Outcome {
     pack_spec(&spec)
 }
 
+/// The TOML scene the `pack` target writes for `data` (None when the bytes
+/// are too few for a spec).
+pub fn pack_toml(data: &[u8]) -> Option<String> {
+    SceneSpec::arbitrary_take_rest(Unstructured::new(data))
+        .ok()
+        .map(|s| s.to_toml())
+}
+
 /// The `pack` target on a spec already built.
 pub fn pack_spec(spec: &SceneSpec) -> Outcome {
     let text = spec.to_toml();
@@ -113,7 +126,7 @@ fn read_text(data: &[u8], path: &Path) -> Outcome {
         Err(e) => refused(&e.to_string(), path, text),
         Ok(s) => {
             check_scene(&s);
-            render_small(&s, &Settings::default())
+            render_small(&s, &small_settings())
         }
     }
 }
@@ -241,6 +254,21 @@ pub fn check_scene(s: &Scene) {
     }
 }
 
+/// Default settings with the fuzzing budget (reading the machine's memory
+/// size for every input would cost more than the input).
+fn small_settings() -> Settings {
+    Settings {
+        width: None,
+        height: None,
+        max_depth: MAX_DEPTH,
+        min_weight: 1.0 / 256.0,
+        spp: 1,
+        sampling: Sampling::Centers,
+        grid: None,
+        budget: Budget::bytes(MEMORY_LIMIT),
+    }
+}
+
 /// Packs `s` for an image of at most [`MAX_SIDE`]² pixels and depth
 /// [`MAX_DEPTH`] and renders it on the CPU mirror; checks every pixel.
 fn render_small(s: &Scene, settings: &Settings) -> Outcome {
@@ -248,9 +276,17 @@ fn render_small(s: &Scene, settings: &Settings) -> Outcome {
         width: Some(settings.width.unwrap_or(s.camera.width).clamp(1, MAX_SIDE)),
         height: Some(settings.height.unwrap_or(s.camera.height).clamp(1, MAX_SIDE)),
         max_depth: settings.max_depth.min(MAX_DEPTH),
+        budget: Budget::bytes(MEMORY_LIMIT),
         ..settings.clone()
     };
-    let p = packing::pack(s, &settings);
+    let p = match packing::pack(s, &settings) {
+        Ok(p) => p,
+        Err(e) => {
+            let m = e.to_string();
+            assert!(!m.trim().is_empty(), "an empty refusal");
+            return Outcome::PackRefused(m);
+        }
+    };
     let f = crate::cpu::render(&p, &|_, _| {});
     assert_eq!(
         f.pixels.len() as u64,
@@ -468,6 +504,7 @@ impl RenderSpec {
                 Sampling::Centers
             },
             grid: self.grid.map(|g| g.map(|n| n as u32 % 16 + 1)),
+            budget: Budget::bytes(MEMORY_LIMIT),
         }
     }
 }
