@@ -73,7 +73,7 @@ pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
         });
     let mut k = (n / 4).clamp(2, BANDS_MAX);
     let lists = loop {
-        if !(hi > lo) || k < 2 {
+        if hi <= lo || k < 2 {
             return plain;
         }
         let inv_h = k as f32 / (hi - lo);
@@ -128,7 +128,7 @@ pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
 #[inline(always)]
 pub fn vertex(extra: &[[f32; 4]], base: usize, j: usize) -> [f32; 2] {
     let e = &extra[base + j / 2];
-    if j % 2 == 0 {
+    if j.is_multiple_of(2) {
         [e[0], e[1]]
     } else {
         [e[2], e[3]]
