@@ -34,13 +34,14 @@ impl fmt::Display for Location<'_> {
 }
 
 impl SceneError {
-    /// The file could not be read. The message names the path and the reason.
+    /// The file could not be read. The message gives the reason; the path
+    /// is the location (`FILE: cannot read: REASON`), named once.
     pub fn io(path: &Path, err: &std::io::Error) -> Self {
         SceneError {
             file: path.to_path_buf(),
             line: None,
             column: None,
-            message: format!("cannot read {}: {}", path.display(), err),
+            message: format!("cannot read: {err}"),
         }
     }
 
@@ -138,7 +139,7 @@ mod tests {
     fn display_without_position() {
         let io = std::io::Error::new(std::io::ErrorKind::NotFound, "gone");
         let e = SceneError::io(Path::new("a/b.toml"), &io);
-        assert_eq!(e.to_string(), "a/b.toml: cannot read a/b.toml: gone");
+        assert_eq!(e.to_string(), "a/b.toml: cannot read: gone");
         assert_eq!(e.line(), None);
         assert_eq!(e.column(), None);
     }
