@@ -1189,6 +1189,24 @@ fn narrowest_field_of_view_both_sides() {
 }
 
 #[test]
+fn nff_objects_before_the_view_are_checked_too() {
+    // checked after the camera is known, and located by reading again
+    let e = nff_err(&format!("l 0 2 0\ns 0 1 0 1\ns 0 1e6 0 1e-9\n{NFF_VIEW}"));
+    assert_err(&e, 3, 11, "sphere radius 1e-9 is too small for f32");
+    let e = nff_err(&format!(
+        "s 0 1 0 1\nl 0 2e18 0\n{NFF_VIEW}s 0 1e6 0 1e-9\n"
+    ));
+    assert_err(&e, 10, 11, "sphere radius 1e-9 is too small for f32");
+    let e = nff_err(&format!("s 0 1 0 1\nl 0 2e18 0\n{NFF_VIEW}"));
+    assert_err(
+        &e,
+        2,
+        3,
+        "light position [0, 2e18, 0] is 2e18 from the camera",
+    );
+}
+
+#[test]
 fn check_f32_limits_for_scenes_built_in_code() {
     let mut s = nff_ok(&format!("{NFF_VIEW}s 0 0 0 1\n"));
     assert!(scene::check_f32_limits(&s).is_ok());
@@ -1224,12 +1242,7 @@ fn io_errors_name_the_path_once() {
     let p = dir.path().join("bin.toml");
     std::fs::write(&p, b"[camera]\nfrom = [0, 0, 1]\n# caf\xe9\n").unwrap();
     let e = scene::load(&p).unwrap_err();
-    assert_err(
-        &e,
-        3,
-        6,
-        "not UTF-8 text: byte 0xe9 here starts no valid character",
-    );
+    assert_err(&e, 3, 6, "not UTF-8 text: invalid byte 0xe9");
 
     // a missing .obj: the scene location, then the .obj path once
     let s = write(
@@ -1285,6 +1298,43 @@ fn integers_beyond_i64_are_out_of_range() {
         9,
         11,
         "truncated `pp` entity at end of file: expected vertex 2 of 16777216 x",
+    );
+}
+
+#[test]
+fn numbers_beyond_f64_are_out_of_range() {
+    let e = nff_err(&format!("{NFF_VIEW}s 0 0 0 1e400\n"));
+    assert_err(
+        &e,
+        8,
+        9,
+        "radius `1e400` is out of range: beyond f64 (magnitudes up to 1.7976931348623157e308)",
+    );
+    let e = toml_err(&format!(
+        "{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1_0e400\n"
+    ));
+    assert_err(
+        &e,
+        7,
+        10,
+        "radius `-1_0e400` is out of range: beyond f64 (magnitudes up to 1.7976931348623157e308)",
+    );
+    let e = toml_err(&format!(
+        "{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1e400\n"
+    ));
+    assert_err(
+        &e,
+        7,
+        10,
+        "number out of range: 1e400 is beyond f64 (magnitudes up to 1.7976931348623157e308)",
+    );
+    // TOML's type names say what they mean
+    let e = toml_err(&format!("{CAMERA}width = 2.5\n"));
+    assert_err(
+        &e,
+        4,
+        9,
+        "invalid type: floating point `2.5`, expected an integer",
     );
 }
 
@@ -1362,6 +1412,15 @@ fn obj_errors_name_the_obj_file_and_line() {
     assert_err(&e, 6, 8, "mesh position [");
     assert!(e.message().contains("from the camera along an axis"), "{e}");
     assert!(e.message().ends_with(&format!("(in {obj}:4)")), "{e}");
+    // not UTF-8: the .obj line and column
+    std::fs::write(dir.path().join("x.obj"), b"v 0 0 0\nv 1 0\xff 0\n").unwrap();
+    let e = scene::load(&dir.path().join("s.toml")).unwrap_err();
+    assert_err(
+        &e,
+        6,
+        8,
+        &format!("mesh {obj}:2:6: not UTF-8 text: invalid byte 0xff"),
+    );
     // degenerate faces are dropped, the rest loads
     let s = scene::load(&scene_with(&format!("{tri}v 2 0 0\nf 1 2 4\nf 1 2 3\n"))).unwrap();
     let Shape::Mesh(m) = &s.objects[0].shape else {

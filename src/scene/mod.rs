@@ -205,11 +205,11 @@ pub fn check_f32_limits(scene: &Scene) -> Result<(), SceneError> {
 /// Why a text file could not be read.
 pub(crate) enum ReadError {
     Io(std::io::Error),
-    /// Not UTF-8: the byte offset of the first bad byte, and that byte.
+    /// Not UTF-8: where the first bad byte is (1-based), and the byte.
     Utf8 {
-        offset: usize,
+        line: usize,
+        column: usize,
         byte: u8,
-        text: String,
     },
 }
 
@@ -218,26 +218,30 @@ impl ReadError {
     fn into_scene_error(self, path: &Path) -> SceneError {
         match self {
             ReadError::Io(e) => SceneError::io(path, &e),
-            ReadError::Utf8 { offset, byte, text } => {
-                SceneError::at_offset(path, &text, offset, utf8_message(byte))
+            ReadError::Utf8 { line, column, byte } => {
+                SceneError::at(path, line, column, utf8_message(byte))
             }
         }
     }
 }
 
 pub(crate) fn utf8_message(byte: u8) -> String {
-    format!("not UTF-8 text: byte 0x{byte:02x} here starts no valid character")
+    format!("not UTF-8 text: invalid byte 0x{byte:02x}")
 }
 
-/// Reads a whole text file. Invalid UTF-8 is reported at its position:
-/// `text` holds the valid part before it, to count lines and columns in.
+/// Reads a whole text file; invalid UTF-8 is reported at its position.
 pub(crate) fn read_text(path: &Path) -> Result<String, ReadError> {
     let bytes = std::fs::read(path).map_err(ReadError::Io)?;
     String::from_utf8(bytes).map_err(|e| {
         let offset = e.utf8_error().valid_up_to();
-        let bytes = e.into_bytes();
-        let byte = bytes[offset];
-        let text = String::from_utf8_lossy(&bytes[..offset]).into_owned();
-        ReadError::Utf8 { offset, byte, text }
+        let bytes = e.as_bytes();
+        // Valid by definition: the bytes before `valid_up_to`.
+        let before = std::str::from_utf8(&bytes[..offset]).unwrap_or_default();
+        let (line, column) = error::line_col(before, offset);
+        ReadError::Utf8 {
+            line,
+            column,
+            byte: bytes[offset],
+        }
     })
 }

@@ -28,7 +28,10 @@ struct Tok<'a> {
 
 /// The token that starts at or after byte `*off` of `text`; moves `*off`
 /// past it. Tokens are read one at a time: an array of them would hold 14
-/// M tokens (336 MB) for an NFF of 1 M spheres.
+/// M tokens (336 MB) for an NFF of 1 M spheres. Inlined: a token returned
+/// through memory and read back whole stalls the store buffer, on every
+/// token.
+#[inline(always)]
 fn scan<'a>(text: &'a str, off: &mut usize) -> Option<Tok<'a>> {
     let bytes = text.as_bytes();
     let mut i = *off;
@@ -150,6 +153,7 @@ impl<'a> Parser<'a> {
 
     /// The next token; at the end of the file, an error at the last token.
     /// `expected` describes it, formatted only for an error.
+    #[inline(always)]
     fn next(&mut self, entity: &str, expected: &dyn Fn() -> String) -> Result<Tok<'a>, SceneError> {
         match self.peek() {
             Some(t) => {
@@ -169,17 +173,25 @@ impl<'a> Parser<'a> {
         }
     }
 
-    /// The next token as a number, unchecked (NaN and infinities too).
-    /// `expected` describes it, formatted only for an error (a 1 M-sphere
-    /// file reads 4 M numbers).
-    fn raw_num(
-        &mut self,
-        entity: &str,
-        expected: &dyn Fn() -> String,
-    ) -> Result<(f64, Tok<'a>), SceneError> {
+    /// The token the last successful [`Parser::next`] took.
+    fn taken(&self) -> Tok<'a> {
+        self.last.unwrap_or(Tok {
+            s: "",
+            off: self.text.len(),
+        })
+    }
+
+    /// The next token as a number, unchecked (NaN and infinities too);
+    /// [`Parser::taken`] is its token. `expected` describes it, formatted
+    /// only for an error (a 1 M-sphere file reads 11 M numbers). The hot
+    /// calls return just the number: a `Result<f64, SceneError>` travels in
+    /// registers, a token with it did not (a store-forwarding stall cost
+    /// the NFF reader 5%).
+    #[inline(always)]
+    fn raw_num(&mut self, entity: &str, expected: &dyn Fn() -> String) -> Result<f64, SceneError> {
         let t = self.next(entity, expected)?;
         match parse_number(t.s) {
-            Some(x) => Ok((x, t)),
+            Some(x) => Ok(x),
             None => Err(self.err(
                 t,
                 format!(
@@ -197,17 +209,38 @@ impl<'a> Parser<'a> {
         entity: &str,
         expected: &dyn Fn() -> String,
         q: &Quantity,
-    ) -> Result<(f64, Tok<'a>), SceneError> {
-        let (x, t) = self.raw_num(entity, expected)?;
-        Ok((self.check(t, q.check(x))?, t))
+    ) -> Result<f64, SceneError> {
+        let x = self.raw_num(entity, expected)?;
+        if q.accepts(x) {
+            Ok(x)
+        } else {
+            Err(self.rejected(self.taken(), x, q))
+        }
     }
 
-    fn num(
-        &mut self,
-        entity: &str,
-        expected: &str,
-        q: &Quantity,
-    ) -> Result<(f64, Tok<'a>), SceneError> {
+    /// `x`, read from `t`, checked as `q`.
+    #[inline]
+    fn checked(&self, t: Tok, x: f64, q: &Quantity) -> Result<f64, SceneError> {
+        if q.accepts(x) {
+            Ok(x)
+        } else {
+            Err(self.rejected(t, x, q))
+        }
+    }
+
+    /// The error for `x`, read from `t`, out of `q`'s range; a literal
+    /// beyond f64 (`1e400`, read as an infinity) is out of range.
+    #[cold]
+    #[inline(never)]
+    fn rejected(&self, t: Tok, x: f64, q: &Quantity) -> SceneError {
+        let beyond = x
+            .is_infinite()
+            .then(|| v::beyond_f64(q.name, t.s))
+            .flatten();
+        self.err(t, beyond.unwrap_or_else(|| q.rejection(x)))
+    }
+
+    fn num(&mut self, entity: &str, expected: &str, q: &Quantity) -> Result<f64, SceneError> {
         self.num_of(entity, &|| expected.to_string(), q)
     }
 
@@ -226,9 +259,10 @@ impl<'a> Parser<'a> {
         } else {
             ["x", "y", "z"]
         };
-        let (x, t) = self.num_of(entity, &|| format!("{} {}", what(), names[0]), q)?;
-        let (y, _) = self.num_of(entity, &|| format!("{} {}", what(), names[1]), q)?;
-        let (z, _) = self.num_of(entity, &|| format!("{} {}", what(), names[2]), q)?;
+        let x = self.num_of(entity, &|| format!("{} {}", what(), names[0]), q)?;
+        let t = self.taken();
+        let y = self.num_of(entity, &|| format!("{} {}", what(), names[1]), q)?;
+        let z = self.num_of(entity, &|| format!("{} {}", what(), names[2]), q)?;
         let v = DVec3::new(x, y, z);
         if q.range == v::Range::Direction {
             q.check3(v).map_err(|(_, m)| self.err(t, m))?;
@@ -261,7 +295,8 @@ impl<'a> Parser<'a> {
         entity: &str,
         expected: &str,
     ) -> Result<(Option<i64>, Tok<'a>), SceneError> {
-        let (x, t) = self.raw_num(entity, &|| expected.to_string())?;
+        let x = self.raw_num(entity, &|| expected.to_string())?;
+        let t = self.taken();
         if let Ok(n) = t.s.parse::<i64>() {
             return Ok((Some(n), t));
         }
@@ -306,7 +341,8 @@ impl<'a> Parser<'a> {
                 "at" => view.at = Some(self.vec3("at", "look-at point", &v::AT)?),
                 "up" => view.up = Some(self.vec3("up", "up vector", &v::UP)?),
                 "angle" => {
-                    view.angle = Some(self.num("angle", "the field of view in degrees", &v::FOV)?)
+                    let fov = self.num("angle", "the field of view in degrees", &v::FOV)?;
+                    view.angle = Some((fov, self.taken()));
                 }
                 "hither" => {
                     self.num("hither", "the hither distance", &v::HITHER)?;
@@ -338,7 +374,15 @@ impl<'a> Parser<'a> {
 /// What a pass over the text gives: the scene, or (when asked to locate a
 /// light or an object) the keyword of the entity that made it.
 enum Outcome<'a> {
-    Scene(Box<Scene>),
+    /// The scene, the `at` and `angle` tokens (for camera faults), and
+    /// how many objects (those before the `v` block) are still to be
+    /// checked against the f32 limits.
+    Scene {
+        scene: Box<Scene>,
+        at: Tok<'a>,
+        fov: Tok<'a>,
+        unchecked: usize,
+    },
     Located(Tok<'a>),
 }
 
@@ -349,24 +393,29 @@ pub(super) fn parse(
     path: &Path,
     progress: &dyn Fn(u64, u64),
 ) -> Result<Scene, SceneError> {
-    let (scene, at_tok, fov_tok) = match pass(text, path, progress, None)? {
-        (Outcome::Scene(s), at, fov) => (*s, at, fov),
-        (Outcome::Located(_), ..) => unreachable!("nothing to locate"),
+    let Outcome::Scene {
+        scene,
+        at,
+        fov,
+        unchecked,
+    } = pass(text, path, progress, None)?
+    else {
+        unreachable!("nothing to locate")
     };
-    if let Err(f) = v::scene_limits(&scene) {
+    if let Err(f) = v::scene_limits_but_objects(&scene, unchecked) {
         // Errors are rare: find the offending entity by reading the text
         // again, rather than keeping a position for every object.
         let tok = match f.site {
-            Site::CameraAt => at_tok,
-            Site::CameraFov => fov_tok,
+            Site::CameraAt => at,
+            Site::CameraFov => fov,
             site => match pass(text, path, &|_, _| {}, Some(site))? {
-                (Outcome::Located(t), ..) => value_token(text, t, site),
-                (Outcome::Scene(_), ..) => unreachable!("the site is in the scene"),
+                Outcome::Located(t) => value_token(text, t, site),
+                Outcome::Scene { .. } => unreachable!("the site is in the scene"),
             },
         };
         return Err(SceneError::at_offset(path, text, tok.off, f.message));
     }
-    Ok(scene)
+    Ok(*scene)
 }
 
 /// The token of the value `site` names, given its entity's keyword.
@@ -385,13 +434,13 @@ fn value_token<'a>(text: &'a str, entity: Tok<'a>, site: Site) -> Tok<'a> {
 }
 
 /// One pass over the text. With `locate`, stops at the entity that makes
-/// that light or object. Also returns the `at` and `angle` tokens.
+/// that light or object.
 fn pass<'a>(
     text: &'a str,
     path: &'a Path,
     progress: &dyn Fn(u64, u64),
     locate: Option<Site>,
-) -> Result<(Outcome<'a>, Tok<'a>, Tok<'a>), SceneError> {
+) -> Result<Outcome<'a>, SceneError> {
     let total = text.len() as u64;
     let mut next_report = 0;
     let mut p = Parser::new(text, path);
@@ -402,6 +451,11 @@ fn pass<'a>(
     let mut material_index: HashMap<[u64; 8], u32> = HashMap::new();
     let mut current = 0u32;
     let mut objects = Vec::new();
+    // Objects are checked against the f32 limits as they are made, once
+    // the camera is known (most files start with `v`); `unchecked` came
+    // before it and are left to the caller.
+    let mut origin: Option<DVec3> = None;
+    let (mut unchecked, mut checked) = (0, 0);
     let (find_light, find_object) = match locate {
         Some(Site::Light(i)) => (i, usize::MAX),
         Some(Site::Object(i, _)) => (usize::MAX, i),
@@ -419,13 +473,13 @@ fn pass<'a>(
                 if view.is_some() {
                     return Err(p.err(t, "a second `v` (viewpoint) block"));
                 }
-                view = Some(p.view(t)?);
+                let parsed = p.view(t)?;
+                origin = parsed.from.map(|(from, _)| from);
+                (unchecked, checked) = (objects.len(), objects.len());
+                view = Some(parsed);
             }
             "b" => background = p.color("b", "background", &v::BACKGROUND)?.0,
             "l" => {
-                if lights.len() == find_light {
-                    return Ok((Outcome::Located(t), t, t));
-                }
                 let (pos, _) = p.vec3("l", "light position", &v::LIGHT_POSITION)?;
                 let color = match p.peek() {
                     Some(n) if parse_number(n.s).is_some() => {
@@ -437,11 +491,12 @@ fn pass<'a>(
             }
             "f" => {
                 let (c, _) = p.color("f", "colour", &v::COLOR)?;
-                let (kd, _) = p.num("f", "Kd", &v::KD)?;
-                let (ks, _) = p.num("f", "Ks", &v::NFF_KS)?;
-                let (shine, _) = p.num("f", "Shine", &v::SHINE)?;
-                let (transmittance, _) = p.num("f", "T", &v::KT)?;
-                let (ior, ior_tok) = p.raw_num("f", &|| "index of refraction".into())?;
+                let kd = p.num("f", "Kd", &v::KD)?;
+                let ks = p.num("f", "Ks", &v::NFF_KS)?;
+                let shine = p.num("f", "Shine", &v::SHINE)?;
+                let transmittance = p.num("f", "T", &v::KT)?;
+                let ior = p.raw_num("f", &|| "index of refraction".into())?;
+                let ior_tok = p.taken();
                 // The SPD writes ior 0 for opaque surfaces, where it means
                 // nothing: read it as 1. A transparent one needs a real ior.
                 let ior = if transmittance == 0.0 && ior == 0.0 {
@@ -449,7 +504,7 @@ fn pass<'a>(
                 } else {
                     ior
                 };
-                p.check(ior_tok, v::IOR.check(ior))?;
+                p.checked(ior_tok, ior, &v::IOR)?;
                 let key = [c.x, c.y, c.z, kd, ks, shine, transmittance, ior].map(f64::to_bits);
                 current = *material_index.entry(key).or_insert_with(|| {
                     materials.push(Material {
@@ -469,13 +524,10 @@ fn pass<'a>(
                 });
             }
             "c" => {
-                if objects.len() == find_object {
-                    return Ok((Outcome::Located(t), t, t));
-                }
                 let (base, _) = p.vec3("c", "base", &v::BASE)?;
-                let (r0, _) = p.num("c", "base radius", &v::BASE_RADIUS)?;
+                let r0 = p.num("c", "base radius", &v::BASE_RADIUS)?;
                 let (apex, _) = p.vec3("c", "apex", &v::APEX)?;
-                let (r1, _) = p.num("c", "apex radius", &v::APEX_RADIUS)?;
+                let r1 = p.num("c", "apex radius", &v::APEX_RADIUS)?;
                 p.check(t, v::cone(base, r0, apex, r1))?;
                 objects.push(Object {
                     shape: Shape::Cone {
@@ -488,20 +540,14 @@ fn pass<'a>(
                 });
             }
             "s" => {
-                if objects.len() == find_object {
-                    return Ok((Outcome::Located(t), t, t));
-                }
                 let (center, _) = p.vec3("s", "centre", &v::CENTER)?;
-                let (radius, _) = p.num("s", "radius", &v::RADIUS)?;
+                let radius = p.num("s", "radius", &v::RADIUS)?;
                 objects.push(Object {
                     shape: Shape::Sphere { center, radius },
                     material: current,
                 });
             }
             "p" => {
-                if objects.len() == find_object {
-                    return Ok((Outcome::Located(t), t, t));
-                }
                 let (n, _) = p.count("p")?;
                 let mut vertices = Vec::with_capacity(n.min(1024));
                 let mut toks = Vec::with_capacity(n.min(1024));
@@ -554,9 +600,6 @@ fn pass<'a>(
                     if v::triangle_is_degenerate(&tri) {
                         continue;
                     }
-                    if objects.len() == find_object {
-                        return Ok((Outcome::Located(t), t, t));
-                    }
                     objects.push(Object {
                         shape: Shape::Triangle {
                             vertices: tri,
@@ -574,6 +617,18 @@ fn pass<'a>(
                     t,
                     format!("unknown NFF entity `{s}` (expected v, b, l, f, c, s, p or pp)"),
                 ));
+            }
+        }
+        if objects.len() > find_object || lights.len() > find_light {
+            return Ok(Outcome::Located(t));
+        }
+        if let Some(origin) = origin {
+            while checked < objects.len() {
+                if let Err((part, m)) = v::object_limits(&objects[checked].shape, origin) {
+                    let site = Site::Object(checked, part);
+                    return Err(p.err(value_token(text, t, site), m));
+                }
+                checked += 1;
             }
         }
     }
@@ -621,7 +676,12 @@ fn pass<'a>(
         objects,
         source: path.to_path_buf(),
     };
-    Ok((Outcome::Scene(Box::new(scene)), at_tok, fov_tok))
+    Ok(Outcome::Scene {
+        scene: Box::new(scene),
+        at: at_tok,
+        fov: fov_tok,
+        unchecked,
+    })
 }
 
 #[cfg(test)]

@@ -26,14 +26,11 @@ pub(super) fn load_mesh(
 ) -> Result<(Mesh, u64), String> {
     let text = read_text(obj_path).map_err(|e| match e {
         ReadError::Io(e) => format!("cannot read mesh {}: {e}", obj_path.display()),
-        ReadError::Utf8 { offset, byte, text } => {
-            let (line, col) = super::error::line_col(&text, offset);
-            format!(
-                "mesh {}:{line}:{col}: {}",
-                obj_path.display(),
-                utf8_message(byte)
-            )
-        }
+        ReadError::Utf8 { line, column, byte } => format!(
+            "mesh {}:{line}:{column}: {}",
+            obj_path.display(),
+            utf8_message(byte)
+        ),
     })?;
     let mesh = parse_obj(&text, obj_path, smooth, progress)?;
     Ok((mesh, text.len() as u64))

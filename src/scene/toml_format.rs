@@ -234,7 +234,15 @@ impl Ctx<'_> {
     }
 
     fn num(&self, n: &Num, q: &Quantity) -> Result<f64, SceneError> {
-        self.check(n.span(), q.check(*n.get_ref()))
+        let x = *n.get_ref();
+        if x.is_infinite() {
+            // toml reads some literals beyond f64 (`-1_0e400`) as infinities
+            let written = self.text.get(n.span()).unwrap_or("");
+            if let Some(m) = v::beyond_f64(q.name, written) {
+                return Err(self.err(n.span(), m));
+            }
+        }
+        self.check(n.span(), q.check(x))
     }
 
     fn opt_num(&self, n: &Option<Num>, q: &Quantity, default: f64) -> Result<f64, SceneError> {
@@ -691,21 +699,35 @@ struct MeshProgress<'a> {
     total: u64,
 }
 
-/// toml's message for an integer beyond i64 is Rust's ParseIntError's;
-/// say what is out of range.
-fn toml_message(msg: &str) -> String {
+/// toml's message, made clearer where it is terse: an integer beyond i64
+/// or a float beyond f64 is out of range (`value` is the text it points
+/// at), and `i64`, `f64` are named as what they mean.
+fn toml_message(msg: &str, value: &str) -> String {
     let msg = msg.trim_end();
     if msg.starts_with("number too large to fit in target type")
         || msg.starts_with("number too small to fit in target type")
     {
-        format!(
+        return format!(
             "integer out of range: TOML integers are 64-bit, {} ..= {}",
             i64::MIN,
             i64::MAX
-        )
-    } else {
-        msg.to_string()
+        );
     }
+    if msg == "invalid floating-point number" {
+        let number: String = value
+            .chars()
+            .take_while(|c| !c.is_whitespace() && !matches!(c, ',' | ']' | '}' | '#'))
+            .filter(|&c| c != '_')
+            .collect();
+        if number.parse::<f64>().is_ok_and(f64::is_infinite) {
+            return format!(
+                "number out of range: {number} is beyond f64 (magnitudes up to {:e})",
+                f64::MAX
+            );
+        }
+    }
+    msg.replace("expected i64", "expected an integer")
+        .replace("expected f64", "expected a number")
 }
 
 /// Parses the native format. `path` is used for messages and to resolve
@@ -717,7 +739,8 @@ pub(super) fn parse(
 ) -> Result<Scene, SceneError> {
     progress(0, text.len() as u64);
     let input: SceneIn = toml::from_str(text).map_err(|e| {
-        let msg = toml_message(e.message());
+        let value = e.span().map_or("", |r| text.get(r.start..).unwrap_or(""));
+        let msg = toml_message(e.message(), value);
         match e.span() {
             Some(span) => SceneError::at_offset(path, text, span.start, msg),
             None => SceneError::in_file(path, msg),

@@ -246,7 +246,44 @@ pub(crate) fn fmt_vec(v: DVec3) -> String {
 
 impl Quantity {
     /// Checks one number (one component of a vector quantity).
+    #[inline]
     pub fn check(&self, x: f64) -> Result<f64, String> {
+        if self.accepts(x) {
+            Ok(x)
+        } else {
+            Err(self.rejection(x))
+        }
+    }
+
+    /// Whether `x` is in range (NaN and infinities never are). Inlined
+    /// into the readers' loops; the message is built apart, only for an
+    /// error.
+    #[inline]
+    pub fn accepts(&self, x: f64) -> bool {
+        match self.range {
+            Finite | Direction => x.is_finite(),
+            Factor => (0.0..=MAX_FACTOR).contains(&x),
+            Fraction => (0.0..=1.0).contains(&x),
+            Exponent => (0.0..=MAX_EXPONENT).contains(&x),
+            Positive => (MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&x),
+            NonNegative => (0.0..=MAX_MAGNITUDE).contains(&x),
+            ZeroOrPositive => x == 0.0 || (MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&x),
+            SignedLength => x == 0.0 || (MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&x.abs()),
+            Fov => x > 0.0 && x < 180.0,
+        }
+    }
+
+    /// Why `x` is out of range (`accepts(x)` is false).
+    #[cold]
+    #[inline(never)]
+    pub fn rejection(&self, x: f64) -> String {
+        match self.verdict(x) {
+            Err(m) => m,
+            Ok(_) => format!("{} is out of range, got {}", self.name, fmt_num(x)),
+        }
+    }
+
+    fn verdict(&self, x: f64) -> Result<f64, String> {
         let name = self.name;
         if !x.is_finite() {
             return Err(format!(
@@ -318,28 +355,40 @@ impl Quantity {
             if m == 0.0 {
                 return Err((0, format!("{} must not be the zero vector", self.name)));
             }
-            magnitude(&format!("{} length", self.name), m, m).map_err(|e| (0, e))?;
+            if !(MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&m) {
+                magnitude(&format!("{} length", self.name), m, m).map_err(|e| (0, e))?;
+            }
         }
         Ok(v)
     }
 }
 
+/// The message for a number written finite (`1e400`, as `text`) that
+/// reads as an infinity.
+pub(crate) fn beyond_f64(name: &str, text: &str) -> Option<String> {
+    text.bytes().any(|b| b.is_ascii_digit()).then(|| {
+        format!(
+            "{name} `{text}` is out of range: beyond f64 (magnitudes up to {:e})",
+            f64::MAX
+        )
+    })
+}
+
 /// `m` (the magnitude of `x`, > 0) must be in `MIN_MAGNITUDE ..= MAX_MAGNITUDE`.
 fn magnitude(name: &str, m: f64, x: f64) -> Result<(), String> {
-    let got = fmt_num(x);
-    if m > MAX_MAGNITUDE {
-        Err(format!(
-            "{name} must be at most {} in magnitude, got {got}: beyond it its square overflows f32",
-            fmt_num(MAX_MAGNITUDE)
-        ))
+    // Formatted only for an error: a 1 M-sphere NFF checks 2 M of these.
+    let (bound, limit, why) = if m > MAX_MAGNITUDE {
+        ("most", MAX_MAGNITUDE, "beyond it its square overflows f32")
     } else if m < MIN_MAGNITUDE && m > 0.0 {
-        Err(format!(
-            "{name} must be at least {} in magnitude, got {got}: below it its square underflows f32",
-            fmt_num(MIN_MAGNITUDE)
-        ))
+        ("least", MIN_MAGNITUDE, "below it its square underflows f32")
     } else {
-        Ok(())
-    }
+        return Ok(());
+    };
+    Err(format!(
+        "{name} must be at {bound} {} in magnitude, got {}: {why}",
+        fmt_num(limit),
+        fmt_num(x)
+    ))
 }
 
 /// A problem with a list of points: the message and, where one point is to
@@ -605,6 +654,13 @@ pub(crate) struct Fault {
 ///
 /// Values are assumed to have passed their [`Quantity`] checks.
 pub(crate) fn scene_limits(scene: &Scene) -> Result<(), Fault> {
+    scene_limits_but_objects(scene, scene.objects.len())
+}
+
+/// [`scene_limits`] for the camera, the lights and only the first
+/// `objects` objects: a reader that checked the others as it made them
+/// (with [`object_limits`], while they were in cache) leaves them out.
+pub(crate) fn scene_limits_but_objects(scene: &Scene, objects: usize) -> Result<(), Fault> {
     let cam = &scene.camera;
     let origin = cam.from;
     let fault = |site, message| Fault { site, message };
@@ -638,7 +694,7 @@ pub(crate) fn scene_limits(scene: &Scene) -> Result<(), Fault> {
         coordinate("light position", l.position - origin, l.position)
             .map_err(|m| fault(Site::Light(i), m))?;
     }
-    for (i, o) in scene.objects.iter().enumerate() {
+    for (i, o) in scene.objects[..objects].iter().enumerate() {
         object_limits(&o.shape, origin).map_err(|(part, m)| fault(Site::Object(i, part), m))?;
     }
     Ok(())
@@ -705,8 +761,18 @@ fn resolvable(
     ))
 }
 
-/// Rules 1 and 2 (and the quadric's rule 3) for one object.
-fn object_limits(shape: &Shape, origin: DVec3) -> Result<(), (Part, String)> {
+/// Rules 1 and 2 (and the quadric's rule 3) for one object, with the
+/// camera at `origin`: on failure, which of its values and why.
+pub(crate) fn object_limits(shape: &Shape, origin: DVec3) -> Result<(), (Part, String)> {
+    if let Shape::Sphere { center, radius } = shape {
+        // Most primitives are spheres: accept them without building
+        // anything. The same arithmetic as below: the largest |coordinate|
+        // of the bounds c ± r is max |c_i| + r.
+        let m = (*center - origin).abs().max_element();
+        if m <= MAX_MAGNITUDE && *radius >= MIN_MAGNITUDE.max(MIN_SIZE_REL * (m + radius)) {
+            return Ok(());
+        }
+    }
     let size =
         |kind, what, s, (lo, hi)| resolvable(kind, what, s, lo, hi).map_err(|m| (Part::Size, m));
     // (a size, whether the file gives it as it is)
@@ -918,6 +984,44 @@ mod tests {
             "camera.width must be in 1..=65536, got 18446744073709551615"
         );
         assert!(HEIGHT.check(Some(0), "0").is_err());
+    }
+
+    /// The inlined test and the messages agree on every row.
+    #[test]
+    fn accepts_agrees_with_the_messages() {
+        let xs = [
+            f64::NEG_INFINITY,
+            -2e18,
+            -1.0,
+            -1e-19,
+            -0.0,
+            0.0,
+            1e-19,
+            1e-18,
+            0.5,
+            1.0,
+            1.5,
+            179.9,
+            180.0,
+            1e6,
+            1.5e6,
+            1e18,
+            2e18,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        for q in TABLE {
+            for x in xs {
+                assert_eq!(q.accepts(x), q.verdict(x).is_ok(), "{} {x}", q.name);
+                if !q.accepts(x) {
+                    assert!(
+                        !q.rejection(x).contains("is out of range"),
+                        "{} {x}",
+                        q.name
+                    );
+                }
+            }
+        }
     }
 
     #[test]
