@@ -1339,6 +1339,14 @@ fn numbers_beyond_f64_are_out_of_range() {
 }
 
 #[test]
+fn zero_cylinder_radius_is_named_as_such() {
+    let e = toml_err(&format!(
+        "{CAMERA}[[object]]\ntype = \"cylinder\"\nbase = [0, 0, 0]\napex = [0, 0, 1]\nradius = 0\n"
+    ));
+    assert_err(&e, 8, 10, "cylinder radius must not be 0");
+}
+
+#[test]
 fn falloff_all_zero_is_refused() {
     let e = toml_err(&format!(
         "{CAMERA}[[light]]\nposition = [0, 0, 9]\nfalloff = [0, 0, 0]\n"

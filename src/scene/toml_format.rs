@@ -506,6 +506,10 @@ impl Ctx<'_> {
                     )
                 } else {
                     let r = self.num(req!(radius), &v::CYLINDER_RADIUS)?;
+                    if r == 0.0 {
+                        let msg = "cylinder radius must not be 0";
+                        return Err(self.err(req!(radius).span(), msg));
+                    }
                     (r, r)
                 };
                 self.check(o.kind.span(), v::cone(base, base_radius, apex, apex_radius))?;
