@@ -2,7 +2,7 @@
 //!
 //! - `rays/*`: rays per second (eye + reflected + refracted + shadow, as
 //!   the SPD counts them) on three scenes.
-//! - `spheres/*`: render time of the random-spheres scene (src/gen.rs) from
+//! - `spheres/*`: render time of the random-spheres scene (src/gen/mod.rs) from
 //!   1 k to 1 M spheres at the same resolution: a uniform grid sized to
 //!   the scene should keep it nearly flat. (Denser fields also reflect
 //!   more: the ray count grows too.)
@@ -23,7 +23,7 @@ fn packed(s: &scene::Scene, w: u32, h: u32) -> Packed {
         height: Some(h),
         ..Settings::default()
     };
-    pack::pack(s, &settings)
+    pack::pack(s, &settings).expect("the bench scenes fit")
 }
 
 fn rays(c: &mut Criterion) {

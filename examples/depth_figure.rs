@@ -21,7 +21,7 @@ fn main() -> anyhow::Result<()> {
             spp: 4,
             ..Settings::default()
         };
-        let f = cpu::render(&pack::pack(&s, &settings), &|_, _| {});
+        let f = cpu::render(&pack::pack(&s, &settings).expect("fits"), &|_, _| {});
         let img = output::to_rgb8(&f, Encoding::Srgb);
         image::imageops::replace(&mut fig, &img, (depth * (w + 4)) as i64, 0);
     }

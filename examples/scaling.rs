@@ -30,14 +30,14 @@ fn main() {
         "sphereflake" => [3u32, 6]
             .iter()
             .map(|&l| {
-                let p = pack::pack(&gen::sphereflake(l), &settings);
+                let p = pack::pack(&gen::sphereflake(l), &settings).expect("fits");
                 (format!("sphereflake {} prims", p.prims.len()), p)
             })
             .collect(),
         _ => [1_000usize, 1_000_000]
             .iter()
             .map(|&n| {
-                let p = pack::pack(&gen::random_spheres(n, 1), &settings);
+                let p = pack::pack(&gen::random_spheres(n, 1), &settings).expect("fits");
                 (format!("{n} spheres"), p)
             })
             .collect(),

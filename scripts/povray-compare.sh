@@ -6,8 +6,10 @@
 #   scripts/povray-compare.sh [SCENE.nff|SCENE.toml] [WIDTH HEIGHT] [RUNS]
 #
 # Default scene: 20 000 random spheres (whitted generate --count 20000).
-# POV-Ray runs with 2 threads (+WT2), no anti-aliasing, no display, the
-# scene exported by `whitted export` (max_trace_level = max depth + 1).
+# POV-Ray runs as whitted::povray::render runs it: one thread per core
+# (+WT), no anti-aliasing (-A), full quality (+Q9), no display, on the scene
+# `whitted export` writes (max_trace_level = max depth + 1). How closely
+# the two images agree, scene by scene: docs/povray.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v povray >/dev/null || { echo "povray is not installed (apt-get install povray)" >&2; exit 2; }
@@ -25,7 +27,7 @@ $bin export "$scene" -o "$work/scene.pov" --width "$w" --height "$h" --max-depth
 wt=(); pt=()
 for _ in $(seq "$runs"); do
   t0=$(date +%s.%N); $bin render "$scene" -q --backend cpu --width "$w" --height "$h" --max-depth 5 -o "$work/w.png"; t1=$(date +%s.%N)
-  povray +I"$work/scene.pov" +O"$work/p.png" +W"$w" +H"$h" +WT2 -D -GA >/dev/null 2>&1; t2=$(date +%s.%N)
+  povray +I"$work/scene.pov" +O"$work/p.png" +W"$w" +H"$h" +WT"$(nproc)" -A +Q9 -UA -D -GA >/dev/null 2>&1; t2=$(date +%s.%N)
   wt+=("$(echo "$t1 - $t0" | bc)"); pt+=("$(echo "$t2 - $t1" | bc)")
 done
 median() { printf '%s\n' "$@" | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }

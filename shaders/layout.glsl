@@ -21,6 +21,7 @@ struct Globals {
     uvec4 image;      // x: width, y: height, z: samples per pixel, w: sampling mode
     uvec4 trace;      // x: max depth, y: feature bits, z, w: strata in x, y
     vec4 params;      // x: min weight, y: surface offset
+    uvec4 flags;      // x: counting flags (FLAG_*)
 };
 
 // One primitive, 64 bytes; kind_mat = kind (low 4 bits) | material << 4.
@@ -86,5 +87,8 @@ const bool HAS_SMOOTH = (FEATURES & FEAT_SMOOTH) != 0u;
 // `HAS_F && has(F)`: identical results whatever FEATURES holds (as long as
 // it is a superset of g.trace.y), and the path compiles out when it is not.
 bool has(uint feature) { return (g.trace.y & feature) != 0u; }
+
+// SceneView::spd_counting: rays are counted as the SPD counts them.
+bool spd_counting() { return (g.flags.x & FLAG_SPD_COUNTING) != 0u; }
 
 #endif

@@ -58,7 +58,11 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
         if (!facing && !highlight_t) {
             continue;
         }
-        stats.shadow += 1u;
+        // The SPD counts a feeler only towards a light the surface faces
+        // (its rule 10): the transmission highlight's are not counted.
+        if (facing || !spd_counting()) {
+            stats.shadow += 1u;
+        }
         precise vec3 o;
         if (dot3(l, ngf) > 0.0) {
             o = p + ngf * eps;

@@ -7,6 +7,11 @@
 // medium's Beer–Lambert attenuation, so I = I_L + k_r I_R + k_t I_T is
 // summed in place. A branch ends at the depth limit or when its weight
 // (largest channel) falls under min weight.
+//
+// Under SPD counting (spd_counting(), docs/spd.md) a surface with k_t > 0
+// also spawns a reflection ray where k_r = 0, as the SPD's reference
+// tracer did; its weight is 0, so it and its subtree are traced for the
+// ray counts only and add nothing to the image.
 #ifndef WHITTED_TRACE_GLSL
 #define WHITTED_TRACE_GLSL
 
@@ -26,6 +31,7 @@ vec3 trace_ray(Ray ray) {
     float min_weight = g.params.x;
     float eps = g.params.y;
     vec3 background = g.background.xyz;
+    bool spd = spd_counting();
     Entry stack[STACK_SIZE];
     stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
     uint sp = 1u;
@@ -62,7 +68,11 @@ vec3 trace_ray(Ray ray) {
         vec3 n = front ? ns : -ns;
         vec3 ngf = front ? ng : -ng;
         vec3 local_ = shade(mat, p, e.d, n, ngf, front);
-        color = color + w * local_;
+        // A ray of weight 0 (SPD counting) adds nothing, even where its
+        // local intensity is not finite.
+        if (max_elem(w) > 0.0) {
+            color = color + w * local_;
+        }
         if (e.depth >= max_depth) {
             continue;
         }
@@ -87,8 +97,9 @@ vec3 trace_ray(Ray ray) {
             }
         }
         // FEAT_REFLECT is set whenever a material has k_r or k_t > 0, the
-        // only ways refl can be positive: the guard changes nothing.
-        if (HAS_REFLECT && max_elem(refl) > 0.0) {
+        // only ways refl can be positive (or SPD counting spawn a ray):
+        // the guard changes nothing.
+        if (HAS_REFLECT && (max_elem(refl) > 0.0 || (spd && max_elem(kt) > 0.0))) {
             precise vec3 wr = w * refl;
             if (max_elem(wr) >= min_weight) {
                 stats.reflect += 1u;

@@ -47,6 +47,12 @@ pub const FEAT_ABSORB: u32 = 512;
 pub const FEAT_TRANSMIT_HIGHLIGHT: u32 = 1024;
 pub const FEAT_FALLOFF: u32 = 2048;
 pub const FEAT_SMOOTH: u32 = 4096;
+/// Counting flags (`Globals::flags.x`). SPD_COUNTING: count rays as the
+/// SPD does (docs/spd.md): a surface with k_t > 0 also spawns a
+/// reflection ray where k_r = 0 (of weight 0, traced for the counts
+/// only), and a shadow feeler counts only towards a light the surface
+/// faces.
+pub const FLAG_SPD_COUNTING: u32 = 1;
 /// Sampling modes (`Globals::image.w`).
 pub const SAMPLING_CENTERS: u32 = 0;
 pub const SAMPLING_JITTER: u32 = 1;

@@ -34,32 +34,43 @@ pub fn render(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
     render_as::<f32>(p, progress)
 }
 
+/// What one tile of the lattice returns: its samples, row by row, and
+/// what they cost.
+pub type TileResult = (Vec<[f32; 3]>, RayStats, Work);
+
 /// Renders with the tracer running in float type `F` (f64: the reference).
+/// Pixel, sample and tile counts are 64-bit: a 65536 × 65536 image has
+/// 2³² pixels and a (W+1)×(H+1) corner lattice more.
 pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
     let s = SceneView::new(p);
     let g = &p.globals;
     let (w, h) = (g.image[0], g.image[1]);
     let corners = g.image[3] == SAMPLING_CORNERS;
     // Corner sampling traces the (W+1)×(H+1) corner lattice, then resolves.
-    let (sw, sh) = if corners { (w + 1, h + 1) } else { (w, h) };
+    let c = corners as u64;
+    let (sw, sh) = (w as u64 + c, h as u64 + c);
     let t0 = Instant::now();
-    let tiles_x = sw.div_ceil(TILE);
-    let tiles_y = sh.div_ceil(TILE);
-    let n_tiles = (tiles_x * tiles_y) as u64;
+    let tile = TILE as u64;
+    // At most 4097² tiles (65537 / 16 per side).
+    let tiles_x = sw.div_ceil(tile);
+    let tiles_y = sh.div_ceil(tile);
+    let n_tiles = tiles_x * tiles_y;
     let done = std::sync::atomic::AtomicU64::new(0);
-    let tiles: Vec<(Vec<[f32; 3]>, RayStats, Work)> = (0..tiles_x * tiles_y)
+    let tiles: Vec<TileResult> = (0..n_tiles)
         .into_par_iter()
         .map(|t| {
-            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let (xs, ys) = tile_rect(t, tiles_x, sw, sh);
             let mut out = Vec::with_capacity((TILE * TILE) as usize);
             let mut stats = RayStats::default();
             let mut work = Work::default();
-            for y in ty * TILE..((ty + 1) * TILE).min(sh) {
-                for x in tx * TILE..((tx + 1) * TILE).min(sw) {
+            // x < sw ≤ W + 1 with W a u32: the lattice's last column is
+            // W itself (corners), so `as u32` is exact.
+            for y in ys {
+                for x in xs.clone() {
                     let c = if corners {
                         trace_sample::<F>(&s, x as f32, y as f32, &mut stats, &mut work)
                     } else {
-                        render_pixel::<F>(&s, x, y, &mut stats, &mut work)
+                        render_pixel::<F>(&s, x as u32, y as u32, &mut stats, &mut work)
                     };
                     out.push(c);
                 }
@@ -73,21 +84,19 @@ pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> F
     let mut stats = RayStats::default();
     let mut work = Work::default();
     for (t, (out, st, wk)) in tiles.iter().enumerate() {
-        let t = t as u32;
-        let (tx, ty) = (t % tiles_x, t / tiles_x);
-        let x0 = tx * TILE;
-        let x1 = ((tx + 1) * TILE).min(sw);
+        let (xs, ys) = tile_rect(t as u64, tiles_x, sw, sh);
+        let (x0, x1) = (xs.start as usize, xs.end as usize);
         let mut i = 0;
-        for y in ty * TILE..((ty + 1) * TILE).min(sh) {
+        for y in ys {
             let row = (y * sw) as usize;
-            samples[row + x0 as usize..row + x1 as usize]
-                .copy_from_slice(&out[i..i + (x1 - x0) as usize]);
-            i += (x1 - x0) as usize;
+            samples[row + x0..row + x1].copy_from_slice(&out[i..i + (x1 - x0)]);
+            i += x1 - x0;
         }
         stats.add(st);
         work.tests += wk.tests;
         work.cells += wk.cells;
     }
+    drop(tiles);
     let pixels = if corners {
         resolve_corners(&samples, w, h)
     } else {
@@ -102,6 +111,22 @@ pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> F
         seconds: t0.elapsed().as_secs_f64(),
         device_seconds: None,
     }
+}
+
+/// The columns and rows of tile `t` (row-major, `tiles_x` to a row) of an
+/// `sw × sh` lattice cut into `TILE × TILE` tiles.
+pub fn tile_rect(
+    t: u64,
+    tiles_x: u64,
+    sw: u64,
+    sh: u64,
+) -> (std::ops::Range<u64>, std::ops::Range<u64>) {
+    let tile = TILE as u64;
+    let (tx, ty) = (t % tiles_x, t / tiles_x);
+    (
+        tx * tile..((tx + 1) * tile).min(sw),
+        ty * tile..((ty + 1) * tile).min(sh),
+    )
 }
 
 /// One eye ray through image position (x, y); counts it.
@@ -142,8 +167,8 @@ pub fn render_pixel<F: Real>(
 
 /// Each pixel is the mean of its four corners in the (W+1)×(H+1) lattice.
 pub fn resolve_corners(c: &[[f32; 3]], w: u32, h: u32) -> Vec<[f32; 3]> {
-    let sw = (w + 1) as usize;
-    let mut out = Vec::with_capacity((w * h) as usize);
+    let sw = w as usize + 1;
+    let mut out = Vec::with_capacity(w as usize * h as usize);
     for y in 0..h as usize {
         for x in 0..w as usize {
             let (a, b, cc, d) = (
@@ -156,4 +181,42 @@ pub fn resolve_corners(c: &[[f32; 3]], w: u32, h: u32) -> Vec<[f32; 3]> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The largest corner lattice (65537², past u32::MAX samples): its
+    /// tiles cover it exactly, counted in 64 bits.
+    #[test]
+    fn tiles_cover_the_largest_lattice() {
+        let (sw, sh) = (65537u64, 65537u64);
+        let tiles_x = sw.div_ceil(TILE as u64);
+        let n = tiles_x * sh.div_ceil(TILE as u64);
+        assert!(sw * sh > u32::MAX as u64);
+        let area = |t: u64| {
+            let (xs, ys) = tile_rect(t, tiles_x, sw, sh);
+            (xs.end - xs.start) * (ys.end - ys.start)
+        };
+        // every full row of tiles has the same area, so check one row
+        // and the last, and the last tile's far corner
+        let row: u64 = (0..tiles_x).map(area).sum();
+        let last_row: u64 = (n - tiles_x..n).map(area).sum();
+        assert_eq!(row, sw * TILE as u64);
+        assert_eq!(row * (n / tiles_x - 1) + last_row, sw * sh);
+        let (xs, ys) = tile_rect(n - 1, tiles_x, sw, sh);
+        assert_eq!((xs.end, ys.end), (sw, sh));
+        assert_eq!((xs.start, ys.start), (65536, 65536));
+    }
+
+    #[test]
+    fn corners_resolve_at_their_lattice() {
+        let (w, h) = (3u32, 2u32);
+        let lattice: Vec<[f32; 3]> = (0..(w + 1) * (h + 1)).map(|i| [i as f32; 3]).collect();
+        let px = resolve_corners(&lattice, w, h);
+        assert_eq!(px.len(), 6);
+        // pixel (1, 1): corners 5, 6, 9, 10 of the 4-wide lattice
+        assert_eq!(px[4], [7.5; 3]);
+    }
 }

@@ -3,15 +3,27 @@
 //! mirror of the same algorithm on the same packed data (`cpu`, `trace`).
 //!
 //! Data flow: `scene::load` → `pack::pack` → `cpu::render` | `gpu::render`
-//! → `output::write`.
+//! → `output::write`; `run::render` is the one entry every command and
+//! test calls (docs/architecture.md).
 
+pub mod bench;
+pub mod budget;
+pub mod cli;
 pub mod constants;
 pub mod cpu;
+pub mod error;
 pub mod export;
+pub mod files;
 pub mod gen;
 pub mod gpu;
 pub mod metrics;
 pub mod output;
 pub mod pack;
+pub mod plot;
+pub mod povray;
+pub mod run;
 pub mod scene;
+pub mod sys;
 pub mod trace;
+
+pub use run::{render, Backend, RenderOptions, Rendered};

@@ -1,9 +1,10 @@
 //! Frame → file: PNG (sRGB-encoded, or the clamped linear values with
-//! `--encoding linear`), or .exr / .hdr keeping linear floats. Written to a
-//! temporary file beside the target and renamed, so a failed write never
-//! leaves half a file.
+//! `--encoding linear`), or .exr / .hdr keeping linear floats. Files are
+//! written through `files::write_atomically`, so a failed write never leaves
+//! half a file; `-` writes PNG to standard output.
 
 use crate::cpu::Frame;
+use crate::files::Dest;
 use anyhow::{bail, Context, Result};
 use std::path::Path;
 
@@ -69,61 +70,46 @@ pub fn format_of(path: &Path) -> Result<Format> {
     })
 }
 
-/// Writes `path` atomically: `body` fills a temporary file beside it, which
-/// is renamed over `path` only when `body` succeeds, so a failure never
-/// leaves half a file.
-pub fn write_atomically(
-    path: &Path,
-    body: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> Result<()>,
-) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(".whitted-")
-        .tempfile_in(dir)
-        .with_context(|| {
-            format!(
-                "{}: cannot create a file in {}",
-                path.display(),
-                dir.display()
-            )
-        })?;
-    {
-        let mut w = std::io::BufWriter::new(tmp.as_file());
-        body(&mut w)?;
-        std::io::Write::flush(&mut w)?;
+/// Encodes `f` in `format`.
+pub fn encode(f: &Frame, format: Format, enc: Encoding, w: &mut dyn std::io::Write) -> Result<()> {
+    let mut buf = std::io::Cursor::new(Vec::new());
+    match format {
+        Format::Png => to_rgb8(f, enc)
+            .write_to(&mut buf, image::ImageFormat::Png)
+            .context("cannot encode PNG")?,
+        Format::Exr | Format::Hdr => {
+            let data: Vec<f32> = f.pixels.iter().flatten().copied().collect();
+            let img = image::Rgb32FImage::from_raw(f.width, f.height, data)
+                .context("frame size does not match its pixels")?;
+            let fmt = if format == Format::Exr {
+                image::ImageFormat::OpenExr
+            } else {
+                image::ImageFormat::Hdr
+            };
+            image::DynamicImage::ImageRgb32F(img)
+                .write_to(&mut buf, fmt)
+                .context("cannot encode the image")?;
+        }
     }
-    tmp.persist(path)
-        .with_context(|| format!("{}: cannot write", path.display()))?;
+    w.write_all(buf.get_ref())?;
     Ok(())
+}
+
+/// Writes `f` to `dest`: a file (atomically; the format from its
+/// extension) or standard output (PNG).
+pub fn write_to(f: &Frame, dest: &Dest, enc: Encoding) -> Result<()> {
+    let format = match dest {
+        Dest::File(p) => format_of(p)?,
+        Dest::Stdout => Format::Png,
+    };
+    let mut bytes = Vec::new();
+    encode(f, format, enc, &mut bytes)?;
+    crate::files::write_bytes(dest, &bytes)
 }
 
 /// Writes `f` to `path` atomically.
 pub fn write(f: &Frame, path: &Path, enc: Encoding) -> Result<()> {
-    let format = format_of(path)?;
-    write_atomically(path, |w| {
-        match format {
-            Format::Png => to_rgb8(f, enc)
-                .write_to(w, image::ImageFormat::Png)
-                .with_context(|| format!("{}: cannot encode PNG", path.display()))?,
-            Format::Exr | Format::Hdr => {
-                let data: Vec<f32> = f.pixels.iter().flatten().copied().collect();
-                let img = image::Rgb32FImage::from_raw(f.width, f.height, data)
-                    .context("frame size does not match its pixels")?;
-                let fmt = if format == Format::Exr {
-                    image::ImageFormat::OpenExr
-                } else {
-                    image::ImageFormat::Hdr
-                };
-                image::DynamicImage::ImageRgb32F(img)
-                    .write_to(w, fmt)
-                    .with_context(|| format!("{}: cannot encode image", path.display()))?;
-            }
-        }
-        Ok(())
-    })
+    write_to(f, &Dest::File(path.to_path_buf()), enc)
 }
 
 #[cfg(test)]

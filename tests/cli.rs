@@ -267,3 +267,141 @@ fn help_documents_every_option() {
         assert!(help.contains(opt), "render --help lacks {opt}");
     }
 }
+
+const NFF_VIEW: &str = "b 0.1 0.1 0.2\nv\nfrom 0 -6 2\nat 0 0 0\nup 0 0 1\nangle 40\nhither 0.01\n\
+resolution 32 24\nl 4 -3 5\nf 1 0.5 0.3 0.8 0.2 30 0 1\n";
+
+/// Renders `scene` with `args` and returns (exit code, stderr, stats JSON
+/// if the render succeeded); checks that a refusal leaves no file behind.
+fn run_render(dir: &Path, scene: &Path, args: &[&str]) -> (i32, String, Option<serde_json::Value>) {
+    let out = dir.join("out.png");
+    let stats = dir.join("st.json");
+    let _ = std::fs::remove_file(&out);
+    let _ = std::fs::remove_file(&stats);
+    let a = whitted()
+        .args(["render", "-q", "--backend", "cpu"])
+        .arg(scene)
+        .args(args)
+        .arg("-o")
+        .arg(&out)
+        .arg("--stats")
+        .arg(&stats)
+        .assert();
+    let o = a.get_output();
+    let code = o.status.code().unwrap_or(-1);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(!err.contains("panicked"), "{err}");
+    if code != 0 {
+        assert!(!out.exists() && !stats.exists(), "a refusal wrote a file");
+        let left: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n.to_string_lossy().starts_with(".whitted-"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+        return (code, err, None);
+    }
+    let j = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    (code, err, Some(j))
+}
+
+/// Issue 7's piles of identical spheres (which used to run out of memory,
+/// panic or file for minutes) render, on one cell; tiny radii (whose
+/// volume underflowed into a 1023³ grid) render on a small grid.
+#[test]
+fn degenerate_extents_render_on_a_small_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, body, cells_max) in [
+        ("same-100k.nff", "s 0 0 0 1\n".repeat(100_000), 1),
+        ("tiny-1e-120.nff", "s 0 0 0 1e-120\n".into(), 3000),
+        ("tiny-5e-324.nff", "s 0 0 0 5e-324\n".into(), 3000),
+        ("point-10k.nff", "s 0.5 0.5 0.5 1e-300\n".repeat(10_000), 1),
+    ] {
+        let scene = write(dir.path(), name, &format!("{NFF_VIEW}{body}"));
+        let (code, err, j) = run_render(dir.path(), &scene, &[]);
+        assert_eq!(code, 0, "{name}: {err}");
+        let j = j.unwrap();
+        let cells: u64 = j["grid"]["cells"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_u64().unwrap())
+            .product();
+        assert!(cells <= cells_max, "{name}: {}", j["grid"]);
+        assert!(
+            j["grid"]["refs"].as_u64().unwrap() <= 8,
+            "{name}: {}",
+            j["grid"]
+        );
+        std::fs::remove_file(&scene).unwrap();
+    }
+}
+
+/// `--width 65536 --height 65536` and `--grid 1023x1023x1023` are
+/// refused by estimate (exit 2, naming the size, the limit and the flag)
+/// before anything large is allocated; `--memory-limit` sets the limit so
+/// the answer is the same on every machine.
+#[test]
+fn oversized_images_and_grids_are_refused_by_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "s.toml", SCENE);
+    for (args, says) in [
+        (
+            &["--width", "65536", "--height", "65536"][..],
+            "the image needs",
+        ),
+        (
+            &[
+                "--width",
+                "65536",
+                "--height",
+                "65536",
+                "--sampling",
+                "corners",
+                "--spp",
+                "4096",
+            ][..],
+            "for 4.3 G samples",
+        ),
+        (&["--grid", "1023x1023x1023"][..], "coarser --grid"),
+    ] {
+        let mut a = args.to_vec();
+        a.extend(["--memory-limit", "4GiB"]);
+        let (code, err, _) = run_render(dir.path(), &scene, &a);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(
+            err.contains(says)
+                && err.contains("--memory-limit")
+                && err.contains("limit 4.0 GiB, as asked"),
+            "{args:?}: {err}"
+        );
+    }
+    // a tiny limit refuses even a small render, naming the flag's value
+    let (code, err, _) = run_render(
+        dir.path(),
+        &scene,
+        &[
+            "--width",
+            "640",
+            "--height",
+            "480",
+            "--memory-limit",
+            "100K",
+        ],
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--memory-limit"), "{err}");
+    // and the same render fits a sensible one
+    let (code, err, _) = run_render(dir.path(), &scene, &["--memory-limit", "1%"]);
+    assert_eq!(code, 0, "{err}");
+    for bad in ["0", "-1G", "12 parsecs", "101%", "99999999999999999999T"] {
+        let out = whitted()
+            .args(["render", "-q", "--backend", "cpu"])
+            .arg(&scene)
+            .args(["--memory-limit", bad, "-o"])
+            .arg(dir.path().join("x.png"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "--memory-limit {bad}");
+    }
+}

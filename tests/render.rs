@@ -81,7 +81,7 @@ fn single_lit_sphere_matches_closed_form() {
     );
     s.ambient = v(0.5, 0.5, 0.5);
     s.background = v(0.25, 0.5, 0.75);
-    let p = pack::pack(&s, &Settings::default());
+    let p = pack::pack(&s, &Settings::default()).unwrap();
     let f = render(&p);
     // The camera model, in f64: vertical fov edge to edge.
     let fwd = (cam.at - cam.from).normalize();
@@ -210,7 +210,7 @@ fn tiled_plane_has_no_cracks() {
             vec![],
         );
         s.ambient = DVec3::ONE;
-        let p = pack::pack(&s, &Settings::default());
+        let p = pack::pack(&s, &Settings::default()).unwrap();
         let f = render(&p);
         let mut leaks = Vec::new();
         for y in 0..f.height {
@@ -294,7 +294,7 @@ proptest! {
     ) {
         let s = random_spheres(seed, count);
         let settings = Settings { grid: Some(dims), ..Settings::default() };
-        let p = pack::pack(&s, &settings);
+        let p = pack::pack(&s, &settings).unwrap();
         let view = SceneView::new(&p);
         for (o, d) in rays {
             let d = v3(d[0], d[1], d[2]);
@@ -337,7 +337,7 @@ fn example_scenes_render_clean() {
             height: Some(48),
             ..Settings::default()
         };
-        let f = render(&pack::pack(&s, &settings));
+        let f = render(&pack::pack(&s, &settings).unwrap());
         assert!(
             f.pixels
                 .iter()
@@ -372,7 +372,7 @@ fn depth_limit_controls_the_ray_tree() {
             max_depth: depth,
             ..Settings::default()
         };
-        frames.push(render(&pack::pack(&s, &settings)));
+        frames.push(render(&pack::pack(&s, &settings).unwrap()));
     }
     assert_eq!(frames[0].stats.reflect + frames[0].stats.refract, 0);
     assert!(frames[1].stats.refract > 0 && frames[1].stats.reflect > 0);
@@ -400,7 +400,7 @@ fn min_weight_prunes_branches() {
             min_weight: w,
             ..Settings::default()
         };
-        let st = render(&pack::pack(&s, &settings)).stats;
+        let st = render(&pack::pack(&s, &settings).unwrap()).stats;
         st.reflect + st.refract
     };
     let (off, low, high) = (count(0.0), count(1.0 / 256.0), count(0.2));
@@ -442,7 +442,7 @@ fn absorption_follows_beer_lambert() {
             vec![],
         );
         s.background = DVec3::ONE;
-        let f = render(&pack::pack(&s, &Settings::default()));
+        let f = render(&pack::pack(&s, &Settings::default()).unwrap());
         out.push(px(&f, 1, 1)[0]);
     }
     assert!((out[0] - 1.0).abs() < 1e-5, "{}", out[0]);
@@ -501,13 +501,16 @@ fn shadows_dim_through_glass_and_stop_at_stone() {
                 falloff: [1.0, 0.0, 0.0],
             }],
         );
-        let f = render(&pack::pack(
-            &s,
-            &Settings {
-                max_depth: 0,
-                ..Settings::default()
-            },
-        ));
+        let f = render(
+            &pack::pack(
+                &s,
+                &Settings {
+                    max_depth: 0,
+                    ..Settings::default()
+                },
+            )
+            .unwrap(),
+        );
         got.push(px(&f, 0, 0)[0]);
     }
     let lit = (0.5f32).sqrt(); // N·L for the light at 45°

@@ -2,16 +2,21 @@
 //! device with one compute queue, and the memory allocator.
 //!
 //! `WHITTED_VALIDATION=1` enables `VK_LAYER_KHRONOS_validation` when it is
-//! installed; every error the messenger reports (validation or driver) is
-//! printed and counted, and tests assert the count stays zero.
+//! installed (`GpuOptions::sync_validation` adds synchronization
+//! validation). The debug messenger is chained into instance creation, so
+//! it also hears `vkCreateInstance` and `vkDestroyInstance`; every message
+//! goes to the `log` crate under the target `vulkan` (docs/gpu.md, "Log
+//! levels"), and every error is counted: tests assert the count stays zero.
 
-use super::GpuError;
+use super::{Fault, GpuError};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use std::ffi::{c_void, CStr};
 use std::mem::ManuallyDrop;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
+use std::time::Duration;
 
 static ERRORS: AtomicU64 = AtomicU64::new(0);
 static WARNINGS: AtomicU64 = AtomicU64::new(0);
@@ -34,9 +39,37 @@ pub fn validation_requested() -> bool {
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
+/// The `log` target of every message the debug messenger passes on.
+pub const LOG_TARGET: &str = "vulkan";
+
+/// The `log` level of a messenger message: errors are errors, validation
+/// and performance warnings are warnings, general warnings (the loader's
+/// notes about other drivers' ICDs) are information, info is info and
+/// verbose is debug.
+fn log_level(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    types: vk::DebugUtilsMessageTypeFlagsEXT,
+) -> log::Level {
+    use vk::DebugUtilsMessageSeverityFlagsEXT as S;
+    use vk::DebugUtilsMessageTypeFlagsEXT as T;
+    if severity.contains(S::ERROR) {
+        log::Level::Error
+    } else if severity.contains(S::WARNING) {
+        if types.intersects(T::VALIDATION | T::PERFORMANCE) {
+            log::Level::Warn
+        } else {
+            log::Level::Info
+        }
+    } else if severity.contains(S::INFO) {
+        log::Level::Info
+    } else {
+        log::Level::Debug
+    }
+}
+
 unsafe extern "system" fn debug_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
-    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    types: vk::DebugUtilsMessageTypeFlagsEXT,
     data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
     _user: *mut c_void,
 ) -> vk::Bool32 {
@@ -48,18 +81,36 @@ unsafe extern "system" fn debug_callback(
             .map(|m| m.to_string_lossy().into_owned())
             .unwrap_or_default()
     };
+    let level = log_level(severity, types);
     if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
         ERRORS.fetch_add(1, Ordering::SeqCst);
-        eprintln!("vulkan error: {msg}");
-    } else {
+    } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
         WARNINGS.fetch_add(1, Ordering::SeqCst);
-        // The loader warns about unrelated ICDs; show warnings only when
-        // validation was asked for.
-        if validation_requested() {
-            eprintln!("vulkan warning: {msg}");
+    }
+    if log::max_level() == log::LevelFilter::Off {
+        // No logger is installed (a library user who set none up): errors
+        // still reach stderr, and warnings do when validation was asked for.
+        if level == log::Level::Error || (level == log::Level::Warn && validation_requested()) {
+            eprintln!("vulkan {}: {msg}", level.as_str().to_lowercase());
         }
+    } else {
+        log::log!(target: LOG_TARGET, level, "{msg}");
     }
     vk::FALSE
+}
+
+/// The severities the messenger asks for: warnings and errors always (they
+/// are counted), info and verbose only when the logger would show them.
+fn messenger_severities() -> vk::DebugUtilsMessageSeverityFlagsEXT {
+    use vk::DebugUtilsMessageSeverityFlagsEXT as S;
+    let mut s = S::WARNING | S::ERROR;
+    if log::log_enabled!(target: LOG_TARGET, log::Level::Info) {
+        s |= S::INFO;
+    }
+    if log::log_enabled!(target: LOG_TARGET, log::Level::Debug) {
+        s |= S::VERBOSE;
+    }
+    s
 }
 
 /// What kind of device a Vulkan physical device is.
@@ -145,6 +196,15 @@ pub struct DeviceInfo {
     pub(crate) pipeline_cache_uuid: [u8; 16],
 }
 
+impl DeviceInfo {
+    /// The device is llvmpipe (lavapipe), whose shaders stop every loop
+    /// once a group of invocations has made `loops::LLVMPIPE_LOOP_BUDGET`
+    /// iterations in all (docs/gpu.md, "lavapipe's loop budget").
+    pub fn has_loop_budget(&self) -> bool {
+        self.name.contains("llvmpipe") || self.driver.contains("llvmpipe")
+    }
+}
+
 /// Result of a Vulkan call, with the call's name on failure.
 pub(crate) trait VkCheck<T> {
     fn vk(self, call: &'static str) -> Result<T, GpuError>;
@@ -164,10 +224,18 @@ pub struct Instance {
     _entry: ash::Entry,
     /// The validation layer is enabled.
     pub validation: bool,
+    /// Synchronization validation is on too.
+    pub sync_validation: bool,
+    /// Set when a device made from this instance hung: nothing is
+    /// destroyed (docs/gpu.md, "Device faults").
+    pub(crate) leak: bool,
 }
 
 impl Instance {
-    pub fn new() -> Result<Self, GpuError> {
+    /// A new instance; the validation layer when `WHITTED_VALIDATION=1` or
+    /// `sync_validation` asks for it and it is installed, with
+    /// synchronization validation when `sync_validation`.
+    pub fn new(sync_validation: bool) -> Result<Self, GpuError> {
         // SAFETY: loading libvulkan runs its initialisers; the Entry keeps
         // the library loaded for as long as any handle made from it.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| {
@@ -194,10 +262,26 @@ impl Instance {
         let has_debug = exts
             .iter()
             .any(|e| e.extension_name_as_c_str() == Ok(ash::ext::debug_utils::NAME));
-        let validation = validation_requested() && has_layer;
-        if validation_requested() && !has_layer {
-            eprintln!(
-                "note: WHITTED_VALIDATION=1 but VK_LAYER_KHRONOS_validation is not installed"
+        let wanted = validation_requested() || sync_validation;
+        let validation = wanted && has_layer;
+        if wanted && !has_layer {
+            log::warn!("validation was asked for but VK_LAYER_KHRONOS_validation is not installed");
+        }
+        // VkValidationFeaturesEXT needs VK_EXT_validation_features, which
+        // the layer itself provides.
+        let has_features = validation
+            && sync_validation
+            // SAFETY: as above; the layer is installed.
+            && unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                .unwrap_or_default()
+                .iter()
+                .any(|e| {
+                    e.extension_name_as_c_str() == Ok(ash::ext::validation_features::NAME)
+                });
+        if validation && sync_validation && !has_features {
+            log::warn!(
+                "synchronization validation was asked for but the validation layer lacks \
+                 VK_EXT_validation_features"
             );
         }
         let app = vk::ApplicationInfo::default()
@@ -210,16 +294,41 @@ impl Instance {
         } else {
             vec![]
         };
-        let ext_names = if has_debug {
-            vec![ash::ext::debug_utils::NAME.as_ptr()]
-        } else {
-            vec![]
-        };
-        let info = vk::InstanceCreateInfo::default()
+        let mut ext_names = vec![];
+        if has_debug {
+            ext_names.push(ash::ext::debug_utils::NAME.as_ptr());
+        }
+        if has_features {
+            ext_names.push(ash::ext::validation_features::NAME.as_ptr());
+        }
+        // The same messenger description serves the one chained into
+        // instance creation (messages from vkCreateInstance and
+        // vkDestroyInstance) and the one made after it (everything else).
+        let mut messenger = vk::DebugUtilsMessengerCreateInfoEXT::default()
+            .message_severity(messenger_severities())
+            .message_type(
+                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+            )
+            .pfn_user_callback(Some(debug_callback));
+        let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut features =
+            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        let mut info = vk::InstanceCreateInfo::default()
             .application_info(&app)
             .enabled_layer_names(&layer_names)
             .enabled_extension_names(&ext_names);
-        // SAFETY: every pointer in `info` refers to locals that outlive the call.
+        if has_debug {
+            info = info.push_next(&mut messenger);
+        }
+        if has_features {
+            info = info.push_next(&mut features);
+        }
+        // SAFETY: every pointer in `info` (and its pNext chain) refers to
+        // locals that outlive the call; the chained structs belong to
+        // extensions enabled in `info`; the callback is a 'static function
+        // that only touches atomics and the logger.
         let instance = unsafe { entry.create_instance(&info, None) }.map_err(|r| match r {
             vk::Result::ERROR_INCOMPATIBLE_DRIVER => GpuError::NoDevice(
                 "no Vulkan driver is installed (vkCreateInstance: ERROR_INCOMPATIBLE_DRIVER)".into(),
@@ -238,24 +347,25 @@ impl Instance {
             instance,
             _entry: entry,
             validation,
+            sync_validation: has_features,
+            leak: false,
         };
         if has_debug {
             let du = ash::ext::debug_utils::Instance::new(&me._entry, &me.instance);
-            let ci = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                        | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-                )
-                .message_type(
-                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                        | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-                )
-                .pfn_user_callback(Some(debug_callback));
+            // Unchained: the messenger made here must not point on to the
+            // validation features.
+            let ci = vk::DebugUtilsMessengerCreateInfoEXT {
+                p_next: std::ptr::null(),
+                ..messenger
+            };
             // SAFETY: the instance enabled VK_EXT_debug_utils; the callback is
-            // a 'static function that only touches atomics and stderr.
-            if let Ok(m) = unsafe { du.create_debug_utils_messenger(&ci, None) } {
-                me.debug = Some((du, m));
+            // a 'static function that only touches atomics and the logger.
+            match unsafe { du.create_debug_utils_messenger(&ci, None) } {
+                Ok(m) => me.debug = Some((du, m)),
+                Err(r) => log::warn!(
+                    "no Vulkan debug messenger (vkCreateDebugUtilsMessengerEXT: {r}); \
+                     validation messages are lost"
+                ),
             }
         }
         Ok(me)
@@ -378,6 +488,9 @@ impl Instance {
 
 impl Drop for Instance {
     fn drop(&mut self) {
+        if self.leak {
+            return;
+        }
         // SAFETY: every object made from this instance (devices, messenger
         // last) is gone: Context drops its device before its Instance.
         unsafe {
@@ -447,6 +560,21 @@ pub fn choose(
     }
 }
 
+/// What a `Context` is opened with: `GpuOptions`' device-level fields with
+/// the environment applied (`super::resolve`).
+#[derive(Clone, Debug, Default)]
+pub struct Settings {
+    pub device: Option<usize>,
+    pub real_gpu_only: bool,
+    pub sync_validation: bool,
+    /// The fault to inject, if any.
+    pub fault: Option<Fault>,
+    /// Longest wait for one submission.
+    pub fence_timeout: Duration,
+    /// Folder of the pipeline cache files; None: no cache.
+    pub cache_dir: Option<PathBuf>,
+}
+
 /// The logical device, its compute queue and the allocator: everything a
 /// render needs. Shared (`Arc`) by the buffers, kernels and command pools
 /// made from it, so it outlives them all.
@@ -455,17 +583,26 @@ pub struct Context {
     pub(crate) device: ash::Device,
     pub(crate) queue: vk::Queue,
     pub info: DeviceInfo,
+    pub(crate) settings: Settings,
+    /// The device failed (lost, or a submission timed out): the error,
+    /// returned again to every later render or probe.
+    pub(crate) failed: Mutex<Option<GpuError>>,
+    /// A submission never finished: the device may still be running it,
+    /// so no handle is destroyed (each Drop leaks; the process frees them
+    /// at exit). Never set on a device that recovered.
+    pub(crate) hung: AtomicBool,
     // Dropped after Context::drop has destroyed the device.
     pub(crate) instance: Instance,
 }
 
 impl Context {
-    /// Opens device `index` (see `choose`) of a fresh instance.
-    pub fn new(index: Option<usize>, real_gpu_only: bool) -> Result<Self, GpuError> {
-        let instance = Instance::new()?;
+    /// Opens the device `settings.device` names (see `choose`) on a fresh
+    /// instance.
+    pub fn new(settings: Settings) -> Result<Self, GpuError> {
+        let instance = Instance::new(settings.sync_validation)?;
         let devices = instance.devices()?;
         let infos: Vec<DeviceInfo> = devices.iter().map(|(_, d)| d.clone()).collect();
-        let i = choose(&infos, index, real_gpu_only)?;
+        let i = choose(&infos, settings.device, settings.real_gpu_only)?;
         let (pd, info) = devices[i].clone();
         let prio = [1.0f32];
         let qinfo = [vk::DeviceQueueCreateInfo::default()
@@ -496,23 +633,52 @@ impl Context {
                 });
             }
         };
+        if let Some(f) = settings.fault {
+            log::warn!(
+                "injecting the device fault {} on {} (docs/gpu.md, \"Device faults\")",
+                f.name(),
+                info.name
+            );
+        }
         Ok(Context {
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             device,
             queue,
             info,
+            settings,
+            failed: Mutex::new(None),
+            hung: AtomicBool::new(false),
             instance,
         })
+    }
+
+    /// `fault` is the one injected on this device.
+    pub(crate) fn injects(&self, fault: Fault) -> bool {
+        self.settings.fault == Some(fault)
+    }
+
+    /// The device's handles must be left alone (a submission never ended).
+    pub(crate) fn is_hung(&self) -> bool {
+        self.hung.load(Ordering::SeqCst)
     }
 }
 
 impl Drop for Context {
     fn drop(&mut self) {
+        if self.is_hung() {
+            // Destroying a device, or freeing memory, that a submission may
+            // still use is undefined; leaking them is not.
+            self.instance.leak = true;
+            return;
+        }
         // SAFETY: every buffer, kernel and command pool holds an Arc to this
         // context, so none is alive; the allocator frees its memory blocks
-        // before the device is destroyed.
+        // before the device is destroyed. On a lost device vkDeviceWaitIdle
+        // returns VK_ERROR_DEVICE_LOST at once, and destroying is allowed.
         unsafe {
-            let _ = self.device.device_wait_idle();
+            if let Err(r) = self.device.device_wait_idle() {
+                log::debug!("vkDeviceWaitIdle while closing {}: {r}", self.info.name);
+            }
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
         }

@@ -3,16 +3,49 @@
 //! The sample lattice is cut into tiles; each tile is one submission
 //! (zero the counters, dispatch, read them back), so no submission runs
 //! long enough to trip a driver watchdog and 32-bit counters cannot wrap.
+//! Every fence is waited for with the fence timeout (docs/gpu.md, "Device
+//! faults").
 
 use super::context::{Context, VkCheck};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
-use super::GpuError;
+use super::{Fault, GpuError};
 use ash::vk;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
+use std::time::Duration;
 
-/// Longest wait for one submission before giving up.
-const FENCE_TIMEOUT_NS: u64 = 600 * 1_000_000_000;
+/// After a fence wait times out, how much longer to wait (at most) for the
+/// submission to end before its handles are given up as in use forever.
+const GRACE: Duration = Duration::from_secs(5);
+
+/// What a submission does: names it in messages, and picks its timeout
+/// and whether an injected fault hits it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Work<'a> {
+    /// A staging copy of the named scene array.
+    Upload(&'a str),
+    /// The empty dispatch after which a driver that compiles a pipeline at
+    /// its first use (llvmpipe) has done so. How long a compile takes is
+    /// not the tiles' to bound, so this waits at least
+    /// `DEFAULT_FENCE_TIMEOUT` whatever the fence timeout.
+    Warmup,
+    /// Tile `index` (from 0) of `count`.
+    Tile { index: usize, count: usize },
+    /// A probe kernel's dispatch.
+    Probe,
+}
+
+impl std::fmt::Display for Work<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Work::Upload(name) => write!(f, "the upload of {name}"),
+            Work::Warmup => write!(f, "the pipeline warm-up"),
+            Work::Tile { index, count } => write!(f, "tile {} of {count}", index + 1),
+            Work::Probe => write!(f, "the probe dispatch"),
+        }
+    }
+}
 
 /// One command pool, one primary command buffer, a fence and (when the
 /// queue has timestamps) a two-entry query pool.
@@ -22,6 +55,10 @@ pub struct Commands {
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
     queries: vk::QueryPool,
+    /// `Fault::FenceNeverSignals`: the event the first dispatch waits on.
+    hang: vk::Event,
+    /// Tile and probe dispatches submitted so far.
+    dispatches: AtomicU32,
 }
 
 impl Commands {
@@ -33,6 +70,8 @@ impl Commands {
             cmd: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),
             queries: vk::QueryPool::null(),
+            hang: vk::Event::null(),
+            dispatches: AtomicU32::new(0),
         };
         // SAFETY: valid create infos on a live device; each handle is stored
         // at once so Drop releases it on an early return.
@@ -66,18 +105,40 @@ impl Commands {
                     )
                     .vk("vkCreateQueryPool")?;
             }
+            if ctx.injects(Fault::FenceNeverSignals) {
+                c.hang = d
+                    .create_event(&vk::EventCreateInfo::default(), None)
+                    .vk("vkCreateEvent")?;
+            }
         }
         Ok(c)
     }
 
-    /// Records `f` into the command buffer, submits it and waits.
+    /// Waits for the fence at most `t`.
+    fn wait(&self, t: Duration) -> Result<(), vk::Result> {
+        let ns = u64::try_from(t.as_nanos()).unwrap_or(u64::MAX);
+        // SAFETY: the fence is live and belongs to this device.
+        unsafe { self.ctx.device.wait_for_fences(&[self.fence], true, ns) }
+    }
+
+    /// Records `f` into the command buffer, submits it and waits for it
+    /// at most the fence timeout (see `Work::Warmup`). After a timeout the
+    /// work is given `GRACE` more to end; if it does not, the device is
+    /// marked hung and no handle of it is destroyed again. Injected
+    /// faults (`Fault::DeviceLost`, `Fault::FenceNeverSignals`) hit the
+    /// first tile or probe dispatch.
     pub fn run_once(
         &self,
+        work: Work,
         f: impl FnOnce(&ash::Device, vk::CommandBuffer),
     ) -> Result<(), GpuError> {
         let d = &self.ctx.device;
+        let first = matches!(work, Work::Tile { .. } | Work::Probe)
+            && self.dispatches.fetch_add(1, Ordering::SeqCst) == 0;
+        let hang = first && self.hang != vk::Event::null();
         // SAFETY: the command buffer is idle (the previous submission was
-        // waited for) and is recorded, submitted and waited for here.
+        // waited for) and is recorded and submitted here; the event (if
+        // any) is unsignalled, and only the host sets it.
         unsafe {
             d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
                 .vk("vkResetCommandBuffer")?;
@@ -87,6 +148,20 @@ impl Commands {
                     .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
             )
             .vk("vkBeginCommandBuffer")?;
+            if hang {
+                // Fault::FenceNeverSignals: everything after this waits for
+                // the host, which sets the event only once the fence wait
+                // below has timed out.
+                d.cmd_wait_events(
+                    self.cmd,
+                    &[self.hang],
+                    vk::PipelineStageFlags::HOST,
+                    vk::PipelineStageFlags::ALL_COMMANDS,
+                    &[],
+                    &[],
+                    &[],
+                );
+            }
             f(d, self.cmd);
             d.end_command_buffer(self.cmd).vk("vkEndCommandBuffer")?;
             let cmds = [self.cmd];
@@ -94,17 +169,44 @@ impl Commands {
             d.reset_fences(&[self.fence]).vk("vkResetFences")?;
             d.queue_submit(self.ctx.queue, &submit, self.fence)
                 .vk("vkQueueSubmit")?;
-            match d.wait_for_fences(&[self.fence], true, FENCE_TIMEOUT_NS) {
-                Ok(()) => Ok(()),
-                Err(vk::Result::TIMEOUT) => Err(GpuError::Internal(format!(
-                    "a submission ran over {} s; use a smaller --tile",
-                    FENCE_TIMEOUT_NS / 1_000_000_000
-                ))),
-                Err(result) => Err(GpuError::Vulkan {
-                    call: "vkWaitForFences",
-                    result,
-                }),
+        }
+        let mut timeout = self.ctx.settings.fence_timeout;
+        if work == Work::Warmup {
+            timeout = timeout.max(super::DEFAULT_FENCE_TIMEOUT);
+        }
+        match self.wait(timeout) {
+            // Fault::DeviceLost: the wait's result as a lost device gives it.
+            Ok(()) if first && self.ctx.injects(Fault::DeviceLost) => {
+                Err::<(), _>(vk::Result::ERROR_DEVICE_LOST).vk("vkWaitForFences")
             }
+            Ok(()) => Ok(()),
+            Err(vk::Result::TIMEOUT) => {
+                if hang {
+                    // The injected hang ends late, as a slow device would.
+                    // SAFETY: a host-settable event of this device.
+                    unsafe { d.set_event(self.hang) }.vk("vkSetEvent")?;
+                }
+                match self.wait(timeout.min(GRACE)) {
+                    Ok(()) => log::debug!(
+                        "{}: {work} finished after the fence timeout",
+                        self.ctx.info.name
+                    ),
+                    Err(r) => {
+                        self.ctx.hung.store(true, Ordering::SeqCst);
+                        log::error!(
+                            "{}: {work} never finished (vkWaitForFences: {r}); its Vulkan \
+                             objects are left for the process exit to free",
+                            self.ctx.info.name
+                        );
+                    }
+                }
+                Err(GpuError::Timeout {
+                    device: self.ctx.info.name.clone(),
+                    what: work.to_string(),
+                    timeout,
+                })
+            }
+            Err(result) => Err(result).vk("vkWaitForFences"),
         }
     }
 
@@ -204,10 +306,15 @@ impl Commands {
 
 impl Drop for Commands {
     fn drop(&mut self) {
-        // SAFETY: every submission was waited for; the pool frees its
-        // command buffer; null handles are ignored.
+        if self.ctx.is_hung() {
+            return;
+        }
+        // SAFETY: every submission was waited for (or the device is lost,
+        // where destroying is allowed); the pool frees its command buffer;
+        // null handles are ignored.
         unsafe {
             let d = &self.ctx.device;
+            d.destroy_event(self.hang, None);
             d.destroy_query_pool(self.queries, None);
             d.destroy_fence(self.fence, None);
             d.destroy_command_pool(self.pool, None);
@@ -225,11 +332,14 @@ pub struct Tile {
 }
 
 /// Cuts a `lw × lh` lattice into tiles of at most `tile × tile` samples,
-/// row by row; rows shrink so one tile traces at most `max_samples` eye
-/// rays (each pixel of a centre lattice traces `spp`).
+/// row by row; tiles shrink (rows first, then width) so one tile traces at
+/// most `max_samples` eye rays (each pixel of a centre lattice traces
+/// `spp`), or one row of one pixel where a single pixel's samples exceed it.
 pub fn tiles(lw: u32, lh: u32, tile: u32, spp: u32, max_samples: u64) -> Vec<Tile> {
-    let tw = tile.clamp(1, lw.max(1));
-    let rows_cap = (max_samples / (tw as u64 * spp.max(1) as u64)).max(1);
+    let spp = spp.max(1) as u64;
+    let width_cap = (max_samples / spp).max(1);
+    let tw = (tile.clamp(1, lw.max(1)) as u64).min(width_cap) as u32;
+    let rows_cap = (max_samples / (tw as u64 * spp)).max(1);
     let th = (tile as u64).min(rows_cap).clamp(1, lh.max(1) as u64) as u32;
     let mut out = Vec::new();
     let mut y = 0;
@@ -244,6 +354,17 @@ pub fn tiles(lw: u32, lh: u32, tile: u32, spp: u32, max_samples: u64) -> Vec<Til
         y += h;
     }
     out
+}
+
+/// Most eye rays one tile may trace so that none of the shader's 32-bit
+/// ray counters can wrap within it: an eye ray's tree has at most
+/// 2^(depth+1) − 1 rays, each casting at most one feeler per light, so a
+/// sample adds at most (2^(depth+1) − 1) · max(lights, 1) to a counter.
+/// Never more than `cap` (keeps submissions short), never less than 1.
+pub fn max_tile_samples(max_depth: u32, lights: u32, cap: u64) -> u64 {
+    let tree = (1u64 << (max_depth.min(62) + 1)) - 1;
+    let per_sample = tree.saturating_mul(lights.max(1) as u64);
+    (u32::MAX as u64 / per_sample).clamp(1, cap.max(1))
 }
 
 /// The order in which a dispatch of `n` workgroups visits its tile:
@@ -311,7 +432,7 @@ mod tests {
             let mut seen = vec![0u8; (lw * lh) as usize];
             for tl in &ts {
                 assert!(tl.w >= 1 && tl.h >= 1 && tl.w <= t && tl.h <= t);
-                assert!(tl.w as u64 * tl.h as u64 * spp as u64 <= (1 << 16) || tl.h == 1);
+                assert!(tl.w as u64 * tl.h as u64 * spp as u64 <= (1 << 16));
                 for y in tl.y0..tl.y0 + tl.h {
                     for x in tl.x0..tl.x0 + tl.w {
                         seen[(y * lw + x) as usize] += 1;
@@ -320,5 +441,44 @@ mod tests {
             }
             assert!(seen.iter().all(|&s| s == 1), "{lw}x{lh} tile {t}");
         }
+    }
+
+    /// At the options' limits no tile traces more eye rays than asked,
+    /// and the tile count is exact in 64 bits.
+    #[test]
+    fn tiles_at_the_limits_of_the_options() {
+        // 4096 spp, --tile 16384: the width shrinks too (256 × 4096 = 2^20).
+        let ts = tiles(65536, 2, 16384, 4096, 1 << 20);
+        assert!(ts.iter().all(|t| t.w as u64 * t.h as u64 * 4096 <= 1 << 20));
+        assert_eq!(ts.len(), 65536 / 256 * 2);
+        // a single pixel's samples over the cap: one pixel per tile
+        let ts = tiles(3, 2, 256, 4096, 1000);
+        assert_eq!(ts.len(), 6);
+        assert!(ts.iter().all(|t| t.w == 1 && t.h == 1));
+        // the largest corner lattice in default tiles
+        let n = 65537u64.div_ceil(256);
+        let ts = tiles(65537, 65537, 256, 1, 1 << 20);
+        assert_eq!(ts.len() as u64, n * n);
+        let covered: u64 = ts.iter().map(|t| t.w as u64 * t.h as u64).sum();
+        assert_eq!(covered, 65537 * 65537);
+    }
+
+    #[test]
+    fn tile_samples_keep_counters_from_wrapping() {
+        for depth in 0..=crate::constants::MAX_DEPTH_LIMIT {
+            for lights in [0u32, 1, 3, 8, 1000, 100_000, u32::MAX] {
+                let m = max_tile_samples(depth, lights, 1 << 20);
+                assert!((1..=1 << 20).contains(&m));
+                let per = ((1u64 << (depth + 1)) - 1) * lights.max(1) as u64;
+                // m samples cannot wrap, unless one sample alone could
+                assert!(m as u128 * per as u128 <= u32::MAX as u128 || m == 1);
+            }
+        }
+        // the defaults (depth 5, a few lights) keep the full cap
+        assert_eq!(max_tile_samples(5, 3, 1 << 20), 1 << 20);
+        assert_eq!(
+            max_tile_samples(16, 8, 1 << 20),
+            u32::MAX as u64 / (131_071 * 8)
+        );
     }
 }

@@ -3,15 +3,25 @@
 //! buffer otherwise), and host-visible output buffers for readback.
 
 use super::context::{Context, VkCheck};
-use super::dispatch::Commands;
-use super::GpuError;
+use super::dispatch::{Commands, Work};
+use super::{Fault, GpuError};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
-use gpu_allocator::MemoryLocation;
+use gpu_allocator::{AllocationError, MemoryLocation};
 use std::sync::Arc;
 
 /// Smallest buffer made: an empty array still binds a valid buffer.
 pub const MIN_BUFFER: u64 = 16;
+
+/// `size` for a message: bytes, KiB, MiB or GiB.
+fn bytes(size: u64) -> String {
+    match size {
+        0..1024 => format!("{size} bytes"),
+        1024..0x10_0000 => format!("{:.1} KiB", size as f64 / 1024.0),
+        0x10_0000..0x4000_0000 => super::mib(size),
+        _ => format!("{:.2} GiB", size as f64 / (1u64 << 30) as f64),
+    }
+}
 
 /// One `VkBuffer` and its memory.
 pub struct Buffer {
@@ -36,29 +46,48 @@ impl Buffer {
             .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
         let d = &ctx.device;
-        // SAFETY: valid create info on a live device.
-        let buffer = unsafe { d.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
+        // The injected memory faults hit the first readback buffer (the
+        // output), after the scene's buffers exist, so that their cleanup
+        // runs too.
+        let readback = location == MemoryLocation::GpuToCpu;
+        let created = if readback && ctx.injects(Fault::OutOfHostMemory) {
+            Err(vk::Result::ERROR_OUT_OF_HOST_MEMORY)
+        } else {
+            // SAFETY: valid create info on a live device.
+            unsafe { d.create_buffer(&info, None) }
+        };
+        let buffer = created.vk("vkCreateBuffer")?;
         // SAFETY: `buffer` was just created on this device.
         let requirements = unsafe { d.get_buffer_memory_requirements(buffer) };
-        let alloc = ctx
-            .allocator
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .allocate(&AllocationCreateDesc {
-                name,
-                requirements,
-                location,
-                linear: true,
-                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-            });
+        let alloc = if readback && ctx.injects(Fault::OutOfDeviceMemory) {
+            Err(AllocationError::OutOfMemory)
+        } else {
+            ctx.allocator
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location,
+                    linear: true,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+        };
         let allocation = match alloc {
             Ok(a) => a,
             Err(e) => {
                 // SAFETY: the buffer is unused and unbound.
                 unsafe { d.destroy_buffer(buffer, None) };
-                return Err(GpuError::Memory {
-                    what: format!("{name} ({})", super::mib(size)),
-                    msg: e.to_string(),
+                let what = format!("{name} ({})", bytes(size));
+                return Err(match e {
+                    AllocationError::OutOfMemory => GpuError::OutOfDeviceMemory {
+                        device: ctx.info.name.clone(),
+                        what,
+                    },
+                    e => GpuError::Memory {
+                        what,
+                        msg: e.to_string(),
+                    },
                 });
             }
         };
@@ -154,7 +183,7 @@ impl Buffer {
         )?;
         staging.write(data)?;
         let size = data.len() as u64;
-        cmds.run_once(|d, cmd| {
+        cmds.run_once(Work::Upload(name), |d, cmd| {
             let region = [vk::BufferCopy::default().size(size)];
             // SAFETY: both buffers are live, large enough, and not in use.
             unsafe { d.cmd_copy_buffer(cmd, staging.buffer, buf.buffer, &region) };
@@ -204,6 +233,11 @@ impl Buffer {
 
 impl Drop for Buffer {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            // A submission that may use it never ended: leak it.
+            std::mem::forget(self.allocation.take());
+            return;
+        }
         // SAFETY: every submission that used this buffer was waited for
         // (each submit waits on its fence); buffer before its memory.
         unsafe { self.ctx.device.destroy_buffer(self.buffer, None) };
@@ -215,5 +249,16 @@ impl Drop for Buffer {
                 .unwrap_or_else(|p| p.into_inner())
                 .free(a);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn sizes_read_in_the_right_unit() {
+        assert_eq!(super::bytes(16), "16 bytes");
+        assert_eq!(super::bytes(6912), "6.8 KiB");
+        assert_eq!(super::bytes(3 << 20), "3.0 MiB");
+        assert_eq!(super::bytes(5 << 30), "5.00 GiB");
     }
 }

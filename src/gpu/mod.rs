@@ -9,6 +9,7 @@
 
 pub mod context;
 pub mod dispatch;
+pub mod loops;
 pub mod memory;
 pub mod pipeline;
 pub mod probe;
@@ -27,22 +28,29 @@ use dispatch::Commands;
 use memory::Buffer;
 use pipeline::Kernel;
 use std::collections::HashMap;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-/// What can go wrong on the GPU path.
-#[derive(Debug, thiserror::Error)]
+/// What can go wrong on the GPU path. `is_user_error` and
+/// `is_device_fault` sort the variants for the CLI's exit codes (2 and 4;
+/// anything else is internal, 3).
+#[derive(Clone, Debug, thiserror::Error)]
 pub enum GpuError {
     /// No loader, no driver, no device (or no real GPU when one is required).
     #[error("no Vulkan device: {0}")]
     NoDevice(String),
-    #[error("--device {index}: there are only {count} Vulkan devices (0 to {}; see `whitted devices`)", count - 1)]
+    #[error("--device {index}: {}", bad_index(*count))]
     BadIndex { index: usize, count: usize },
     #[error("{0}")]
     Unusable(String),
     /// The scene or the options exceed what the device can do.
     #[error("{0}")]
     Limits(String),
+    /// A setting from the environment is malformed (WHITTED_GPU_FAULT,
+    /// WHITTED_FENCE_TIMEOUT, WHITTED_PIPELINE_CACHE).
+    #[error("{0}")]
+    Setting(String),
     #[error("shader: {0}")]
     Shader(String),
     #[error("{call} failed: {result}")]
@@ -54,14 +62,104 @@ pub enum GpuError {
     Memory { what: String, msg: String },
     #[error("internal error: {0}")]
     Internal(String),
-    /// The driver stopped shader loops early (llvmpipe's per-shader loop
-    /// budget of 65535 iterations): the image would be silently wrong.
+    /// VK_ERROR_DEVICE_LOST: the driver reset the device (a crash, a hung
+    /// shader, a watchdog). The device is not used again.
     #[error(
-        "{device} cut {loops} shader loops short (llvmpipe stops every loop after 65535 iterations \
-         per group of invocations), so this image would be wrong; use --backend cpu, fewer lights, \
-         a smaller --max-depth or a smaller --workgroup"
+        "{device} was lost during {call} (VK_ERROR_DEVICE_LOST: the driver reset it); \
+         the render was not finished"
     )]
-    LoopsCut { device: String, loops: u32 },
+    DeviceLost { device: String, call: &'static str },
+    /// The device's memory ran out (VK_ERROR_OUT_OF_DEVICE_MEMORY, or
+    /// gpu-allocator found no room) although the scene passed the limits
+    /// check: another program holds the memory.
+    #[error("{device} ran out of device memory allocating {what}")]
+    OutOfDeviceMemory { device: String, what: String },
+    /// VK_ERROR_OUT_OF_HOST_MEMORY: the driver could not allocate host
+    /// memory.
+    #[error("the Vulkan driver of {device} ran out of host memory in {call}")]
+    OutOfHostMemory { device: String, call: &'static str },
+    /// A submission's fence did not signal within the fence timeout. The
+    /// device is not used again.
+    #[error(
+        "{device} did not finish {what} within the fence timeout of {} (the device is \
+         treated as hung; a smaller --tile shortens each submission)",
+        seconds(*timeout)
+    )]
+    Timeout {
+        device: String,
+        what: String,
+        timeout: Duration,
+    },
+    /// vkCreateComputePipelines failed: the driver cannot build the kernel.
+    #[error("the driver of {device} refused to build the {kernel} kernel (vkCreateComputePipelines: {result:?})")]
+    PipelineRefused {
+        device: String,
+        kernel: String,
+        result: vk::Result,
+    },
+    /// The driver stopped shader loops early (llvmpipe's per-shader loop
+    /// budget, `loops::LLVMPIPE_LOOP_BUDGET`): the image would be silently
+    /// wrong. `cause` names what drives the loops (`loops::LoopLoad`).
+    #[error(
+        "{device} cut {} short (llvmpipe stops every loop after {} iterations per group of \
+         invocations), so this image would be wrong; the likely cause is {cause}; {remedy}, \
+         or use --backend cpu",
+        plural(*loops as u64, "shader loop", "shader loops"),
+        loops::BUDGET_TEXT
+    )]
+    LoopsCut {
+        device: String,
+        loops: u32,
+        cause: String,
+        remedy: String,
+    },
+    /// Refused before dispatching: the host traced an eye ray whose loops
+    /// alone exceed llvmpipe's budget (`loops::certain_cut`).
+    #[error(
+        "{device} would cut this render's shader loops short: llvmpipe allows {} loop \
+         iterations per group of invocations, and the eye ray of {at} alone needs at least {}, \
+         most of them for {cause}; {remedy}, or use --backend cpu",
+        loops::BUDGET_TEXT,
+        loops::thousands(*iterations)
+    )]
+    LoopsWouldBeCut {
+        device: String,
+        at: String,
+        iterations: u64,
+        cause: String,
+        remedy: String,
+    },
+}
+
+/// "there is only 1 Vulkan device (0)", "there are only 3 Vulkan devices
+/// (0 to 2)".
+fn bad_index(count: usize) -> String {
+    match count {
+        0 => "there is no Vulkan device (see `whitted devices`)".into(),
+        1 => "there is only 1 Vulkan device (index 0; see `whitted devices`)".into(),
+        n => format!(
+            "there are only {n} Vulkan devices (indices 0 to {}; see `whitted devices`)",
+            n - 1
+        ),
+    }
+}
+
+/// "1 shader loop", "3 shader loops".
+pub(crate) fn plural(n: u64, one: &str, many: &str) -> String {
+    format!(
+        "{} {}",
+        loops::thousands(n),
+        if n == 1 { one } else { many }
+    )
+}
+
+fn seconds(d: Duration) -> String {
+    let s = d.as_secs_f64();
+    if s == s.trunc() {
+        plural(s as u64, "second", "seconds")
+    } else {
+        format!("{s} seconds")
+    }
 }
 
 impl GpuError {
@@ -74,9 +172,48 @@ impl GpuError {
                 | GpuError::BadIndex { .. }
                 | GpuError::Unusable(_)
                 | GpuError::Limits(_)
+                | GpuError::Setting(_)
                 | GpuError::Memory { .. }
                 | GpuError::LoopsCut { .. }
+                | GpuError::LoopsWouldBeCut { .. }
         )
+    }
+
+    /// The device failed while rendering: lost, out of device or host
+    /// memory, timed out, or its driver refused the kernel. `--backend
+    /// auto` finishes such a render on the CPU mirror (`Gpu::render_or`);
+    /// `--backend gpu` exits with 4.
+    pub fn is_device_fault(&self) -> bool {
+        matches!(
+            self,
+            GpuError::DeviceLost { .. }
+                | GpuError::OutOfDeviceMemory { .. }
+                | GpuError::OutOfHostMemory { .. }
+                | GpuError::Timeout { .. }
+                | GpuError::PipelineRefused { .. }
+        )
+    }
+
+    /// The device must not be used again after this error.
+    fn ends_the_device(&self) -> bool {
+        matches!(self, GpuError::DeviceLost { .. } | GpuError::Timeout { .. })
+    }
+
+    /// A failed Vulkan call as the device fault it is, if it is one.
+    fn classify(self, device: &str) -> GpuError {
+        let device = device.to_string();
+        match self {
+            GpuError::Vulkan { call, result } => match result {
+                vk::Result::ERROR_DEVICE_LOST => GpuError::DeviceLost { device, call },
+                vk::Result::ERROR_OUT_OF_DEVICE_MEMORY => GpuError::OutOfDeviceMemory {
+                    device,
+                    what: format!("memory for {call}"),
+                },
+                vk::Result::ERROR_OUT_OF_HOST_MEMORY => GpuError::OutOfHostMemory { device, call },
+                _ => GpuError::Vulkan { call, result },
+            },
+            e => e,
+        }
     }
 }
 
@@ -88,12 +225,102 @@ pub(crate) fn mib(bytes: u64) -> String {
 pub const DEFAULT_TILE: u32 = 256;
 /// Default workgroup shape (specialization constants 0 and 1).
 pub const DEFAULT_WORKGROUP: [u32; 2] = [8, 8];
-/// Most eye rays one tile traces: keeps every submission short and the
-/// shader's 32-bit counters far from wrapping (a sample spawns at most
-/// 2^(depth+1) rays each with one feeler per light).
+/// Most eye rays one tile traces: keeps every submission short. Deep
+/// trees and many lights lower it further (`dispatch::max_tile_samples`)
+/// so the shader's 32-bit ray counters cannot wrap within a tile.
 pub const MAX_TILE_SAMPLES: u64 = 1 << 20;
+/// Longest wait for one submission (one tile) when neither
+/// `GpuOptions::fence_timeout` nor `WHITTED_FENCE_TIMEOUT` says otherwise.
+/// Tiles keep each submission to at most `MAX_TILE_SAMPLES` eye rays, and
+/// a real GPU's driver reports a hung shader as a lost device within
+/// seconds (its watchdog); the timeout catches what neither does, and is
+/// long so that a slow CPU device finishing a heavy tile is never cut off
+/// (docs/gpu.md, "Device faults").
+pub const DEFAULT_FENCE_TIMEOUT: Duration = Duration::from_secs(600);
 
-/// How to run on the GPU.
+/// Environment variable naming a device fault to inject (test only).
+pub const FAULT_ENV: &str = "WHITTED_GPU_FAULT";
+/// Environment variable: the fence timeout in seconds.
+pub const FENCE_TIMEOUT_ENV: &str = "WHITTED_FENCE_TIMEOUT";
+/// Environment variable: `off`, or the folder of the pipeline cache.
+pub const PIPELINE_CACHE_ENV: &str = "WHITTED_PIPELINE_CACHE";
+
+/// A device fault to inject, for tests (`GpuOptions::fault`, or the
+/// environment variable `WHITTED_GPU_FAULT=device-lost` and so on). Each
+/// makes the real call site fail as a driver would, so the real error
+/// path and its cleanup run (docs/gpu.md, "Device faults").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// The first submission's vkWaitForFences returns
+    /// VK_ERROR_DEVICE_LOST (after the real wait).
+    DeviceLost,
+    /// The allocation of the first readback buffer (the render's output)
+    /// fails as gpu-allocator's does when the device memory is full.
+    OutOfDeviceMemory,
+    /// vkCreateBuffer of the first readback buffer returns
+    /// VK_ERROR_OUT_OF_HOST_MEMORY.
+    OutOfHostMemory,
+    /// The first submission waits on an event the host sets only after
+    /// its fence wait has timed out (so the device really is busy, and
+    /// then recovers).
+    FenceNeverSignals,
+    /// vkCreateComputePipelines returns VK_ERROR_UNKNOWN.
+    PipelineRefused,
+}
+
+impl Fault {
+    pub const ALL: [Fault; 5] = [
+        Fault::DeviceLost,
+        Fault::OutOfDeviceMemory,
+        Fault::OutOfHostMemory,
+        Fault::FenceNeverSignals,
+        Fault::PipelineRefused,
+    ];
+
+    /// The name `WHITTED_GPU_FAULT` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fault::DeviceLost => "device-lost",
+            Fault::OutOfDeviceMemory => "out-of-device-memory",
+            Fault::OutOfHostMemory => "out-of-host-memory",
+            Fault::FenceNeverSignals => "fence-never-signals",
+            Fault::PipelineRefused => "pipeline-refused",
+        }
+    }
+}
+
+impl std::str::FromStr for Fault {
+    type Err = GpuError;
+    fn from_str(s: &str) -> Result<Self, GpuError> {
+        Fault::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                GpuError::Setting(format!(
+                    "{FAULT_ENV}={s}: not a fault; one of {}",
+                    Fault::ALL.map(Fault::name).join(", ")
+                ))
+            })
+    }
+}
+
+/// Where compiled pipelines are cached between runs.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum PipelineCache {
+    /// `WHITTED_PIPELINE_CACHE` (`off` or a folder) when set, otherwise
+    /// `$XDG_CACHE_HOME/whitted` or `~/.cache/whitted`.
+    #[default]
+    Default,
+    /// No cache: every run compiles its pipelines.
+    Off,
+    /// This folder (made when missing).
+    Dir(PathBuf),
+}
+
+/// How to run on the GPU. `device`, `real_gpu_only`, `sync_validation`,
+/// `fault`, `fence_timeout` and `pipeline_cache` are read when the device
+/// is opened (`Gpu::new`); `tile`, `workgroup` and `staging` by each
+/// render.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GpuOptions {
     /// `--device N`: index in `devices()`; None: the best usable device.
@@ -108,6 +335,16 @@ pub struct GpuOptions {
     /// memory is host-visible: the path a discrete GPU takes, tested on
     /// lavapipe (whose memory is all host-visible).
     pub staging: bool,
+    /// Turn on the validation layer (when installed) with synchronization
+    /// validation.
+    pub sync_validation: bool,
+    /// A device fault to inject (tests). None: `WHITTED_GPU_FAULT` when set.
+    pub fault: Option<Fault>,
+    /// Longest wait for one submission. None: `WHITTED_FENCE_TIMEOUT`
+    /// seconds when set, otherwise `DEFAULT_FENCE_TIMEOUT`.
+    pub fence_timeout: Option<Duration>,
+    /// Where compiled pipelines are cached.
+    pub pipeline_cache: PipelineCache,
 }
 
 impl Default for GpuOptions {
@@ -118,13 +355,63 @@ impl Default for GpuOptions {
             tile: DEFAULT_TILE,
             workgroup: DEFAULT_WORKGROUP,
             staging: false,
+            sync_validation: false,
+            fault: None,
+            fence_timeout: None,
+            pipeline_cache: PipelineCache::Default,
         }
     }
 }
 
+/// `opts`' device-level settings with the environment applied.
+fn resolve(opts: &GpuOptions) -> Result<context::Settings, GpuError> {
+    let env = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
+    let fault = match (opts.fault, env(FAULT_ENV)) {
+        (Some(f), _) => Some(f),
+        (None, Some(v)) => Some(v.parse()?),
+        (None, None) => None,
+    };
+    let fence_timeout = match (opts.fence_timeout, env(FENCE_TIMEOUT_ENV)) {
+        (Some(t), _) => t,
+        (None, Some(v)) => v
+            .parse::<f64>()
+            .ok()
+            .filter(|s| s.is_finite() && *s > 0.0 && *s < 1e9)
+            .map(Duration::from_secs_f64)
+            .ok_or_else(|| {
+                GpuError::Setting(format!(
+                    "{FENCE_TIMEOUT_ENV}={v}: expected a positive number of seconds"
+                ))
+            })?,
+        (None, None) => DEFAULT_FENCE_TIMEOUT,
+    };
+    if fence_timeout.is_zero() {
+        return Err(GpuError::Setting(
+            "the fence timeout must be positive".into(),
+        ));
+    }
+    let cache_dir = match &opts.pipeline_cache {
+        PipelineCache::Off => None,
+        PipelineCache::Dir(d) => Some(d.clone()),
+        PipelineCache::Default => match env(PIPELINE_CACHE_ENV) {
+            Some(v) if v == "off" => None,
+            Some(v) => Some(PathBuf::from(v)),
+            None => pipeline::cache_dir(),
+        },
+    };
+    Ok(context::Settings {
+        device: opts.device,
+        real_gpu_only: opts.real_gpu_only,
+        sync_validation: opts.sync_validation,
+        fault,
+        fence_timeout,
+        cache_dir,
+    })
+}
+
 /// Every Vulkan device; `Err(NoDevice)` when there is no loader or driver.
 pub fn devices() -> Result<Vec<DeviceInfo>, GpuError> {
-    let inst = context::Instance::new()?;
+    let inst = context::Instance::new(false)?;
     Ok(inst.devices()?.into_iter().map(|(_, d)| d).collect())
 }
 
@@ -186,9 +473,10 @@ pub struct Gpu {
 }
 
 impl Gpu {
-    /// Opens the device `opts` chooses.
+    /// Opens the device `opts` chooses, with its device-level settings
+    /// (see `GpuOptions`).
     pub fn new(opts: &GpuOptions) -> Result<Self, GpuError> {
-        let ctx = Arc::new(Context::new(opts.device, opts.real_gpu_only)?);
+        let ctx = Arc::new(Context::new(resolve(opts)?)?);
         Ok(Gpu {
             busy: Mutex::new(()),
             kernels: Mutex::new(HashMap::new()),
@@ -203,6 +491,70 @@ impl Gpu {
     /// The validation layer is on for this device.
     pub fn validation(&self) -> bool {
         self.ctx.instance.validation
+    }
+
+    /// Synchronization validation is on for this device.
+    pub fn sync_validation(&self) -> bool {
+        self.ctx.instance.sync_validation
+    }
+
+    /// The folder of the pipeline cache in use (None: no cache).
+    pub fn pipeline_cache_dir(&self) -> Option<&std::path::Path> {
+        self.ctx.settings.cache_dir.as_deref()
+    }
+
+    /// The fault that ended this device (a loss or a timeout), if one
+    /// did: every later render or probe returns it again.
+    pub fn failed(&self) -> Option<GpuError> {
+        self.ctx
+            .failed
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+    }
+
+    /// The fence timeout in force.
+    pub fn fence_timeout(&self) -> Duration {
+        self.ctx.settings.fence_timeout
+    }
+
+    /// Runs `f` on the device unless an earlier fault ended it; classifies
+    /// its error, and ends the device after a loss or a timeout.
+    fn guarded<T>(&self, f: impl FnOnce() -> Result<T, GpuError>) -> Result<T, GpuError> {
+        let failed = || self.ctx.failed.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(e) = &*failed() {
+            return Err(e.clone());
+        }
+        let r = f().map_err(|e| e.classify(&self.ctx.info.name));
+        if let Err(e) = &r {
+            if e.ends_the_device() {
+                log::debug!("{} is not used again after: {e}", self.ctx.info.name);
+                failed().get_or_insert_with(|| e.clone());
+            }
+        }
+        r
+    }
+
+    /// What `--backend auto` does: renders on this device, and when the
+    /// device fails (`GpuError::is_device_fault`) renders with `fallback`
+    /// (the CPU mirror) instead and returns the fault beside the frame, so
+    /// that the caller can say, in one line, that the CPU mirror finished
+    /// the render and why. Any other error is returned as it is.
+    pub fn render_or(
+        &self,
+        packed: &Packed,
+        opts: &GpuOptions,
+        progress: &dyn Fn(u64, u64),
+        fallback: impl FnOnce() -> Frame,
+    ) -> Result<(Frame, Option<GpuError>), GpuError> {
+        match self.render(packed, opts, progress) {
+            Ok(f) => Ok((f, None)),
+            Err(e) if e.is_device_fault() => {
+                log::info!("{e}; rendering on the CPU mirror instead");
+                Ok((fallback(), Some(e)))
+            }
+            Err(e) => Err(e),
+        }
     }
 
     fn kernel(
@@ -230,33 +582,9 @@ impl Gpu {
 
     /// Refuses, with the reason, what the device cannot hold: an array over
     /// `maxStorageBufferRange`, or more memory than its largest heap.
-    fn check_fits(&self, packed: &Packed, out_bytes: u64) -> Result<(), GpuError> {
+    fn check_fits(&self, packed: &Packed, out_samples: u64) -> Result<(), GpuError> {
         let i = &self.ctx.info;
-        let arrays: [(&str, u64); 8] = [
-            ("globals", std::mem::size_of_val(&packed.globals) as u64),
-            (
-                "prims",
-                std::mem::size_of_val(packed.prims.as_slice()) as u64,
-            ),
-            (
-                "extra",
-                std::mem::size_of_val(packed.extra.as_slice()) as u64,
-            ),
-            (
-                "materials",
-                std::mem::size_of_val(packed.materials.as_slice()) as u64,
-            ),
-            (
-                "lights",
-                std::mem::size_of_val(packed.lights.as_slice()) as u64,
-            ),
-            (
-                "cell_start",
-                std::mem::size_of_val(packed.cell_start.as_slice()) as u64,
-            ),
-            ("refs", std::mem::size_of_val(packed.refs.as_slice()) as u64),
-            ("output samples", out_bytes),
-        ];
+        let arrays = crate::budget::gpu_buffers(packed, out_samples);
         for (name, bytes) in arrays {
             if bytes > i.max_storage_buffer_range {
                 let hint = match name {
@@ -305,6 +633,35 @@ impl Gpu {
         })
     }
 
+    /// On a device with llvmpipe's loop budget, refuses a render in which
+    /// the host can see that some invocation's loops must exceed it.
+    fn check_loops(&self, packed: &Packed) -> Result<(), GpuError> {
+        if !self.info().has_loop_budget() {
+            return Ok(());
+        }
+        match loops::certain_cut(packed) {
+            Some(c) => Err(GpuError::LoopsWouldBeCut {
+                device: self.info().name.clone(),
+                at: c.at(),
+                iterations: c.iterations,
+                cause: c.driver.describe(),
+                remedy: c.driver.remedy().into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// The error for `loops` cut loops, naming what drives them.
+    fn loops_cut(&self, packed: &Packed, loops: u32) -> GpuError {
+        let driver = loops::LoopLoad::of(packed).largest();
+        GpuError::LoopsCut {
+            device: self.info().name.clone(),
+            loops,
+            cause: driver.describe(),
+            remedy: driver.remedy().into(),
+        }
+    }
+
     fn check_workgroup(&self, opts: &GpuOptions) -> Result<(), GpuError> {
         let i = &self.ctx.info;
         let [wx, wy] = opts.workgroup;
@@ -343,7 +700,7 @@ impl Gpu {
         opts: &GpuOptions,
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
-        self.render_with(shaders::RENDER, "render", packed, opts, progress)
+        self.guarded(|| self.render_with(shaders::RENDER, "render", packed, opts, progress))
     }
 
     fn render_with(
@@ -362,7 +719,8 @@ impl Gpu {
         let (lw, lh) = if corners { (w + 1, h + 1) } else { (w, h) };
         let n = lw as u64 * lh as u64;
         let out_bytes = n * 16;
-        self.check_fits(packed, out_bytes)?;
+        self.check_fits(packed, n)?;
+        self.check_loops(packed)?;
         let kernel = self.kernel(
             name,
             spirv,
@@ -390,7 +748,7 @@ impl Gpu {
             // An empty tile: every invocation is out of range, nothing is
             // traced or counted, but the driver compiles the pipeline now
             // rather than inside the first timed tile.
-            cmds.run_once(|d, cmd| {
+            cmds.run_once(dispatch::Work::Warmup, |d, cmd| {
                 cmds.record_dispatch(
                     d,
                     cmd,
@@ -402,7 +760,8 @@ impl Gpu {
             })?;
         }
         let spp = if corners { 1 } else { g.image[2] };
-        let tiles = dispatch::tiles(lw, lh, opts.tile, spp, MAX_TILE_SAMPLES);
+        let max_samples = dispatch::max_tile_samples(g.trace[0], g.counts[2], MAX_TILE_SAMPLES);
+        let tiles = dispatch::tiles(lw, lh, opts.tile, spp, max_samples);
         let t0 = Instant::now();
         let mut stats = RayStats::default();
         let mut device_seconds: Option<f64> = None;
@@ -418,22 +777,25 @@ impl Gpu {
                 1
             };
             let push: RenderPush = [t.x0, t.y0, t.w, t.h, stride, 0, 0, 0];
-            cmds.run_once(|d, cmd| {
-                cmds.record_dispatch(
-                    d,
-                    cmd,
-                    &kernel,
-                    bytemuck::bytes_of(&push),
-                    groups,
-                    Some(&counters),
-                )
-            })?;
+            cmds.run_once(
+                dispatch::Work::Tile {
+                    index: k,
+                    count: tiles.len(),
+                },
+                |d, cmd| {
+                    cmds.record_dispatch(
+                        d,
+                        cmd,
+                        &kernel,
+                        bytemuck::bytes_of(&push),
+                        groups,
+                        Some(&counters),
+                    )
+                },
+            )?;
             let c: [u32; 8] = bytemuck::pod_read_unaligned(counters.read(32)?);
             if c[5] > 0 {
-                return Err(GpuError::LoopsCut {
-                    device: self.info().name.clone(),
-                    loops: c[5],
-                });
+                return Err(self.loops_cut(packed, c[5]));
             }
             stats.add(&RayStats {
                 eye: c[0] as u64,
@@ -478,7 +840,7 @@ impl Gpu {
         mode: ProbeMode,
         items: &[ProbeItem],
     ) -> Result<Vec<ProbeResult>, GpuError> {
-        self.probe_with("probe", shaders::PROBE, packed, mode, items)
+        self.guarded(|| self.probe_with("probe", shaders::PROBE, packed, mode, items))
     }
 
     fn probe_with(
@@ -514,12 +876,14 @@ impl Gpu {
         let groups = count.div_ceil(probe::PROBE_LOCAL_SIZE);
         if groups > self.ctx.info.max_compute_work_group_count[0] {
             return Err(GpuError::Limits(format!(
-                "{count} probe items need {groups} workgroups; the device allows {}",
+                "{} need {}; the device allows {}",
+                plural(count as u64, "probe item", "probe items"),
+                plural(groups as u64, "workgroup", "workgroups"),
                 self.ctx.info.max_compute_work_group_count[0]
             )));
         }
         let push: ProbePush = [mode as u32, count, 0, 0];
-        cmds.run_once(|d, cmd| {
+        cmds.run_once(dispatch::Work::Probe, |d, cmd| {
             cmds.record_dispatch(
                 d,
                 cmd,
@@ -534,5 +898,65 @@ impl Gpu {
             .chunks_exact(std::mem::size_of::<ProbeResult>())
             .map(bytemuck::pod_read_unaligned)
             .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn device_counts_read_as_english() {
+        let e = |count| GpuError::BadIndex { index: 5, count }.to_string();
+        assert_eq!(
+            e(1),
+            "--device 5: there is only 1 Vulkan device (index 0; see `whitted devices`)"
+        );
+        assert_eq!(
+            e(3),
+            "--device 5: there are only 3 Vulkan devices (indices 0 to 2; see `whitted devices`)"
+        );
+        assert!(e(0).contains("there is no Vulkan device"), "{}", e(0));
+        assert_eq!(plural(1, "loop", "loops"), "1 loop");
+        assert_eq!(plural(20_000, "light", "lights"), "20 000 lights");
+        assert_eq!(seconds(Duration::from_secs(1)), "1 second");
+        assert_eq!(seconds(Duration::from_millis(1500)), "1.5 seconds");
+    }
+
+    #[test]
+    fn faults_parse_by_name_and_sort_into_device_faults() {
+        for f in Fault::ALL {
+            assert_eq!(f.name().parse::<Fault>().unwrap(), f);
+        }
+        let e = "device-found".parse::<Fault>().unwrap_err();
+        assert!(
+            e.is_user_error() && e.to_string().contains("device-lost"),
+            "{e}"
+        );
+        let lost = GpuError::Vulkan {
+            call: "vkQueueSubmit",
+            result: vk::Result::ERROR_DEVICE_LOST,
+        }
+        .classify("dev");
+        assert!(matches!(lost, GpuError::DeviceLost { .. }) && lost.is_device_fault());
+        assert!(lost.ends_the_device());
+        let oom = GpuError::Vulkan {
+            call: "vkAllocateCommandBuffers",
+            result: vk::Result::ERROR_OUT_OF_DEVICE_MEMORY,
+        }
+        .classify("dev");
+        assert!(oom.is_device_fault() && !oom.ends_the_device(), "{oom:?}");
+        let host = GpuError::Vulkan {
+            call: "vkCreateFence",
+            result: vk::Result::ERROR_OUT_OF_HOST_MEMORY,
+        }
+        .classify("dev");
+        assert!(matches!(host, GpuError::OutOfHostMemory { .. }), "{host:?}");
+        let other = GpuError::Vulkan {
+            call: "vkCreateFence",
+            result: vk::Result::ERROR_UNKNOWN,
+        }
+        .classify("dev");
+        assert!(!other.is_device_fault() && !other.is_user_error());
     }
 }

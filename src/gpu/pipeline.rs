@@ -1,10 +1,11 @@
 //! Compute kernels: shader module, specialization constants, descriptor set
 //! layout, pool and set (all storage buffers, set 0), push constants, and
-//! the pipeline cache persisted under the user's cache directory.
+//! the pipeline cache persisted in a folder (`GpuOptions::pipeline_cache`;
+//! by default under the user's cache directory).
 
 use super::context::{Context, VkCheck};
 use super::memory::Buffer;
-use super::GpuError;
+use super::{Fault, GpuError};
 use ash::vk;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -124,14 +125,28 @@ impl Kernel {
             let ci = [vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
                 .layout(k.layout)];
-            let cache = PipelineCache::open(ctx);
-            let r = d.create_compute_pipelines(cache.handle, &ci, None);
+            let cache = CacheFile::open(ctx);
+            let r = if ctx.injects(Fault::PipelineRefused) {
+                Err((vec![], vk::Result::ERROR_UNKNOWN))
+            } else {
+                d.create_compute_pipelines(cache.handle, &ci, None)
+            };
             d.destroy_shader_module(module, None);
-            cache.save();
-            k.pipeline = r.map_err(|(_, result)| GpuError::Vulkan {
-                call: "vkCreateComputePipelines",
-                result,
+            k.pipeline = r.map_err(|(_, result)| match result {
+                // Out of memory is the device's state, not the kernel's.
+                vk::Result::ERROR_OUT_OF_HOST_MEMORY | vk::Result::ERROR_OUT_OF_DEVICE_MEMORY => {
+                    GpuError::Vulkan {
+                        call: "vkCreateComputePipelines",
+                        result,
+                    }
+                }
+                result => GpuError::PipelineRefused {
+                    device: ctx.info.name.clone(),
+                    kernel: name.to_string(),
+                    result,
+                },
             })?[0];
+            cache.save();
         }
         Ok(k)
     }
@@ -172,6 +187,9 @@ impl Kernel {
 
 impl Drop for Kernel {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return;
+        }
         // SAFETY: no pending work uses the pipeline (submissions are waited
         // for); reverse order of creation; null handles are ignored.
         unsafe {
@@ -184,17 +202,19 @@ impl Drop for Kernel {
     }
 }
 
-/// A `VkPipelineCache` loaded from and saved to
-/// `$XDG_CACHE_HOME/whitted` (or `~/.cache/whitted`), one file per device.
-/// Every failure (no cache dir, unreadable, stale, unwritable) just means
-/// no cache.
-struct PipelineCache<'a> {
+/// A `VkPipelineCache` loaded from and saved to a file in the cache
+/// folder (`context::Settings::cache_dir`), one file per vendor and device.
+/// A missing, stale, corrupt or unwritable file never fails a render: it
+/// means no cache, with a warning through `log` where something is wrong
+/// (docs/gpu.md, "Pipeline cache").
+struct CacheFile<'a> {
     ctx: &'a Context,
     handle: vk::PipelineCache,
     path: Option<PathBuf>,
 }
 
-/// Where pipeline caches live.
+/// The default folder of the pipeline cache: `$XDG_CACHE_HOME/whitted`, or
+/// `~/.cache/whitted`.
 pub fn cache_dir() -> Option<PathBuf> {
     let base = match std::env::var_os("XDG_CACHE_HOME") {
         Some(x) if !x.is_empty() => PathBuf::from(x),
@@ -203,63 +223,199 @@ pub fn cache_dir() -> Option<PathBuf> {
     Some(base.join("whitted"))
 }
 
-impl<'a> PipelineCache<'a> {
+/// The cache file of device `info` in folder `dir`.
+pub fn cache_file(dir: &std::path::Path, info: &super::DeviceInfo) -> PathBuf {
+    dir.join(format!(
+        "pipelines-{:04x}-{:04x}.bin",
+        info.vendor_id, info.device_id
+    ))
+}
+
+/// Bytes of VkPipelineCacheHeaderVersionOne.
+const HEADER: usize = 32;
+
+/// Why `data` is no cache for this device, if it is not one. A file
+/// written by another driver build is normal after an update (no reason to
+/// warn); anything else is corruption.
+fn check_header(data: &[u8], i: &super::DeviceInfo) -> Result<(), (log::Level, &'static str)> {
+    let word = |k: usize| u32::from_le_bytes(data[k..k + 4].try_into().unwrap());
+    if data.len() < HEADER {
+        return Err((log::Level::Warn, "shorter than its header"));
+    }
+    if word(0) as usize != HEADER || word(4) != 1 {
+        return Err((log::Level::Warn, "not a Vulkan pipeline cache (bad header)"));
+    }
+    if word(8) != i.vendor_id || word(12) != i.device_id || data[16..32] != i.pipeline_cache_uuid {
+        return Err((
+            log::Level::Info,
+            "written by another device or driver build",
+        ));
+    }
+    Ok(())
+}
+
+/// The contents of cache file `path` if it is a cache of device `i`;
+/// empty (with a message through `log` saying why) otherwise.
+fn load(path: &std::path::Path, i: &super::DeviceInfo) -> Vec<u8> {
+    match std::fs::read(path) {
+        Ok(b) => match check_header(&b, i) {
+            Ok(()) => b,
+            Err((level, why)) => {
+                log::log!(level, "pipeline cache {} ignored: {why}", path.display());
+                Vec::new()
+            }
+        },
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+        Err(e) => {
+            log::warn!("pipeline cache {} unreadable: {e}", path.display());
+            Vec::new()
+        }
+    }
+}
+
+impl<'a> CacheFile<'a> {
     fn open(ctx: &'a Context) -> Self {
         let i = &ctx.info;
-        let path = cache_dir().map(|d| {
-            d.join(format!(
-                "pipelines-{:04x}-{:04x}.bin",
-                i.vendor_id, i.device_id
-            ))
-        });
+        let path = ctx.settings.cache_dir.as_deref().map(|d| cache_file(d, i));
         // Hand the driver only data whose header names this very device and
         // driver build (VkPipelineCacheHeaderVersionOne).
-        let data = path
-            .as_ref()
-            .and_then(|p| std::fs::read(p).ok())
-            .filter(|b| {
-                b.len() >= 32
-                    && u32::from_le_bytes(b[4..8].try_into().unwrap()) == 1
-                    && u32::from_le_bytes(b[8..12].try_into().unwrap()) == i.vendor_id
-                    && u32::from_le_bytes(b[12..16].try_into().unwrap()) == i.device_id
-                    && b[16..32] == i.pipeline_cache_uuid
-            })
-            .unwrap_or_default();
+        let data = path.as_deref().map(|p| load(p, i)).unwrap_or_default();
         let ci = vk::PipelineCacheCreateInfo::default().initial_data(&data);
         // SAFETY: the initial data's header was checked against this device.
-        let handle = unsafe { ctx.device.create_pipeline_cache(&ci, None) }
-            .unwrap_or(vk::PipelineCache::null());
-        PipelineCache { ctx, handle, path }
+        let handle = match unsafe { ctx.device.create_pipeline_cache(&ci, None) } {
+            Ok(h) => h,
+            Err(r) => {
+                log::warn!("no pipeline cache (vkCreatePipelineCache: {r})");
+                vk::PipelineCache::null()
+            }
+        };
+        CacheFile { ctx, handle, path }
     }
 
+    /// Writes the cache back when the driver put anything past the header
+    /// in it (lavapipe never does); a failure is a warning.
     fn save(&self) {
         if self.handle == vk::PipelineCache::null() {
             return;
         }
         let Some(path) = &self.path else { return };
         // SAFETY: a live cache on a live device.
-        let Ok(data) = (unsafe { self.ctx.device.get_pipeline_cache_data(self.handle) }) else {
-            return;
-        };
-        if data.len() <= 32 {
-            return;
-        }
-        let Some(dir) = path.parent() else { return };
-        if std::fs::create_dir_all(dir).is_err() {
-            return;
-        }
-        // Written atomically: concurrent processes never see half a file.
-        if let Ok(mut tmp) = tempfile::NamedTempFile::new_in(dir) {
-            if std::io::Write::write_all(&mut tmp, &data).is_ok() {
-                let _ = tmp.persist(path);
+        let data = match unsafe { self.ctx.device.get_pipeline_cache_data(self.handle) } {
+            Ok(d) => d,
+            Err(r) => {
+                log::warn!("pipeline cache not saved (vkGetPipelineCacheData: {r})");
+                return;
             }
+        };
+        if data.len() <= HEADER {
+            return;
+        }
+        if let Err(e) = write_atomic(path, &data) {
+            log::warn!("pipeline cache {} not saved: {e}", path.display());
         }
     }
 }
 
-impl Drop for PipelineCache<'_> {
+/// Writes through a temporary file in the same folder (made if missing),
+/// renamed over `path`: concurrent processes never see half a file.
+fn write_atomic(path: &std::path::Path, data: &[u8]) -> std::io::Result<()> {
+    let dir = path
+        .parent()
+        .ok_or_else(|| std::io::Error::other("no parent folder"))?;
+    std::fs::create_dir_all(dir)?;
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+    std::io::Write::write_all(&mut tmp, data)?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
+
+impl Drop for CacheFile<'_> {
     fn drop(&mut self) {
         // SAFETY: pipeline creation with this cache has returned.
         unsafe { self.ctx.device.destroy_pipeline_cache(self.handle, None) };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::{DeviceInfo, DeviceKind};
+
+    fn device() -> DeviceInfo {
+        DeviceInfo {
+            index: 0,
+            name: "test device".into(),
+            kind: DeviceKind::Cpu,
+            driver: String::new(),
+            api_version: "1.3.0".into(),
+            vendor_id: 0x10005,
+            device_id: 7,
+            max_storage_buffer_range: 0,
+            max_compute_work_group_invocations: 0,
+            max_compute_work_group_size: [0; 3],
+            max_compute_work_group_count: [0; 3],
+            max_push_constants_size: 0,
+            subgroup_size: 0,
+            timestamps: false,
+            timestamp_period_ns: 0.0,
+            device_local_bytes: 0,
+            unusable: None,
+            queue_family: 0,
+            timestamp_mask: 0,
+            pipeline_cache_uuid: [9; 16],
+        }
+    }
+
+    fn header(i: &DeviceInfo) -> Vec<u8> {
+        let mut h = Vec::new();
+        for w in [HEADER as u32, 1, i.vendor_id, i.device_id] {
+            h.extend_from_slice(&w.to_le_bytes());
+        }
+        h.extend_from_slice(&i.pipeline_cache_uuid);
+        h
+    }
+
+    #[test]
+    fn only_this_devices_cache_is_loaded() {
+        let i = device();
+        let dir = tempfile::tempdir().unwrap();
+        let path = cache_file(dir.path(), &i);
+        assert!(load(&path, &i).is_empty(), "missing file");
+        let mut good = header(&i);
+        good.extend_from_slice(b"driver data");
+        std::fs::write(&path, &good).unwrap();
+        assert_eq!(load(&path, &i), good);
+        for (bad, level) in [
+            (b"garbage".to_vec(), log::Level::Warn),
+            (vec![0u8; 64], log::Level::Warn),
+            (
+                {
+                    let mut other = good.clone();
+                    other[16] ^= 1; // another driver build's UUID
+                    other
+                },
+                log::Level::Info,
+            ),
+        ] {
+            assert_eq!(check_header(&bad, &i).unwrap_err().0, level);
+            std::fs::write(&path, &bad).unwrap();
+            assert!(load(&path, &i).is_empty());
+        }
+        // A folder where the file should be: unreadable, still no failure.
+        std::fs::remove_file(&path).unwrap();
+        std::fs::create_dir(&path).unwrap();
+        assert!(load(&path, &i).is_empty());
+    }
+
+    #[test]
+    fn an_unwritable_cache_is_an_error_to_log_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("a file");
+        std::fs::write(&file, b"x").unwrap();
+        // Its folder would have to be inside a regular file.
+        assert!(write_atomic(&file.join("sub").join("c.bin"), b"data").is_err());
+        let ok = dir.path().join("new").join("c.bin");
+        write_atomic(&ok, b"data").unwrap();
+        assert_eq!(std::fs::read(&ok).unwrap(), b"data");
     }
 }

@@ -1,14 +1,40 @@
 //! Building the uniform voxel grid over the finite primitives.
 //!
-//! Resolution heuristic (documented in docs/method.md): aim for
-//! `GRID_DENSITY` cells per primitive, cells as close to cubes as the
+//! Resolution heuristic (documented in docs/method.md, "Voxel grid"): aim
+//! for `GRID_DENSITY` cells per primitive, cells as close to cubes as the
 //! scene's extent allows: k = cbrt(GRID_DENSITY · N / V), n_i = round(e_i · k)
 //! clamped to [1, GRID_MAX_DIM], where e_i are the extents of the bounds of
-//! all finite primitives (each at least 1/1000 of the largest, so flat
-//! scenes get a flat grid rather than a degenerate one) and V their product.
+//! all finite primitives relative to the largest (each at least 1/1000 of
+//! it, so flat scenes get a flat grid rather than a degenerate one, and
+//! tiny or huge scenes neither underflow nor overflow) and V their product.
+//!
+//! A counting pass then counts the references that resolution makes,
+//! exactly and in 64 bits, before anything is filed (O(N): a primitive's
+//! references are the product of its cell range's sides). The heuristic
+//! coarsens the grid while the references do not fit (the memory budget,
+//! and `MAX_REFS` for the 32-bit offsets), and while they exceed
+//! `REDUNDANT_REFS_PER_PRIM` per primitive without refining paying: when
+//! primitives overlap so much that a finer grid only repeats the same
+//! lists in more cells (a pile of identical spheres), the coarser grid
+//! traces as fast in a fraction of the memory.
 
-use super::layout::cell_pack;
+use super::layout::{cell_pack, cell_unpack};
 use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, SKIP_MAX};
+
+/// Most references a grid may hold: `cell_start` holds u32 offsets (the
+/// shader's arrays are indexed in 32 bits).
+pub const MAX_REFS: u64 = u32::MAX as u64;
+
+/// References per primitive above which the heuristic asks whether a
+/// coarser grid would do. Well-formed scenes stay below it with a factor
+/// of two to spare (measured at the default density, docs/method.md: the
+/// SPD scenes 1.6 to 8.7, 1 M random spheres 11.9, scenes/showcase.toml
+/// 14.1; a primitive no larger than a cell is in at most 8 cells).
+pub const REDUNDANT_REFS_PER_PRIM: u64 = 32;
+
+/// Refining from the coarser grid must shorten the mean reference list
+/// per cell to at most this share of it to be worth its cells.
+const REFINE_GAIN: f64 = 0.75;
 
 /// Bounds in camera-relative f64.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,57 +84,293 @@ pub struct Grid {
     pub refs: Vec<u32>,
 }
 
+/// Which pass of the build a progress report is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Ordering the primitives in memory (`pack`'s Morton sort): reported
+    /// when it starts and when it ends.
+    Sort,
+    /// Counting the references of a candidate resolution (there may be a
+    /// few passes, each from 0).
+    Count,
+    /// Filing every primitive into its cells.
+    File,
+}
+
+/// `progress(stage, done, total)`: primitives done in the current pass.
+pub type Progress<'a> = &'a (dyn Fn(Stage, u64, u64) + Sync);
+
+/// Primitives between two progress reports.
+const PROGRESS_EVERY: usize = 1 << 16;
+
+/// Why no grid could be built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Refusal {
+    /// The smallest grid tried (the `--grid` asked for, or 1×1×1).
+    pub dims: [u32; 3],
+    pub cells: u64,
+    /// Its references, counted exactly.
+    pub refs: u64,
+}
+
+/// Cells of `dims`, in 64 bits.
+pub fn cells_of(dims: [u32; 3]) -> u64 {
+    dims[0] as u64 * dims[1] as u64 * dims[2] as u64
+}
+
 /// Cells per axis for `n` primitives inside `b`.
 pub fn resolution(b: &Bounds, n: usize) -> [u32; 3] {
     let e = b.extent();
-    let emax = e[0].max(e[1]).max(e[2]).max(f64::MIN_POSITIVE);
-    let e = e.map(|x| x.max(emax * 1e-3));
-    let volume = e[0] * e[1] * e[2];
-    let k = (GRID_DENSITY as f64 * n.max(1) as f64 / volume).cbrt();
-    e.map(|x| ((x * k).round() as u32).clamp(1, GRID_MAX_DIM))
+    let emax = e[0].max(e[1]).max(e[2]);
+    if !(emax > 0.0 && emax.is_finite()) {
+        return [1, 1, 1]; // all at one point (or beyond f64)
+    }
+    // Relative extents in [1e-3, 1]: their product cannot underflow.
+    let r = e.map(|x| (x / emax).max(1e-3));
+    let k = (GRID_DENSITY as f64 * n.max(1) as f64 / (r[0] * r[1] * r[2])).cbrt();
+    r.map(|x| ((x * k).round() as u32).clamp(1, GRID_MAX_DIM))
+}
+
+/// About `cells(dims) / 2` cells, the same shape: each side × 2^(−1/3).
+pub fn coarser(dims: [u32; 3]) -> [u32; 3] {
+    let f = 0.5f64.cbrt();
+    let mut d = dims.map(|n| ((n as f64 * f).round() as u32).max(1));
+    if d == dims {
+        // rounding kept every side: shorten the longest
+        let i = (0..3).max_by_key(|&i| dims[i]).unwrap_or(0);
+        d[i] = (dims[i] - 1).max(1);
+    }
+    d
+}
+
+/// The grid's box in f32: the bounds padded so that primitives touching
+/// them are strictly inside, by at least a few f32 steps of the
+/// coordinates' magnitude on each axis (a tiny scene far from the camera
+/// must not collapse to a box of zero width in f32).
+fn grid_box(all: &Bounds) -> ([f32; 3], [f32; 3]) {
+    let pad = all.diagonal().max(1e-30) * 1e-5;
+    let mut lo = [0f32; 3];
+    let mut hi = [0f32; 3];
+    for i in 0..3 {
+        let mag = all.lo[i].abs().max(all.hi[i].abs());
+        let p = pad.max(4.0 * f32::EPSILON as f64 * mag);
+        lo[i] = (all.lo[i] - p) as f32;
+        hi[i] = (all.hi[i] + p) as f32;
+    }
+    (lo, hi)
+}
+
+/// At most this many cells on an axis of the box `lo..hi`: each cell at
+/// least 8 f32 steps wide, so that cell boundaries stay distinct numbers.
+fn f32_cap(lo: f32, hi: f32) -> u32 {
+    let ulp = lo.abs().max(hi.abs()) as f64 * f32::EPSILON as f64;
+    if ulp.is_nan() || ulp <= 0.0 {
+        return GRID_MAX_DIM;
+    }
+    let n = ((hi as f64 - lo as f64) / (8.0 * ulp)).floor();
+    if n.is_nan() {
+        1
+    } else {
+        n.clamp(1.0, GRID_MAX_DIM as f64) as u32
+    }
+}
+
+/// The grid's box and cell size for `dims`.
+struct Layout {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    dims: [u32; 3],
+    cell: [f32; 3],
+}
+
+impl Layout {
+    fn new(lo: [f32; 3], hi: [f32; 3], dims: [u32; 3]) -> Layout {
+        let cell = [0, 1, 2].map(|i| (hi[i] - lo[i]) / dims[i] as f32);
+        Layout { lo, hi, dims, cell }
+    }
+
+    /// Packed lowest and highest cell of `b`'s bounds. They grow by a
+    /// small margin so that a hit the DDA's rounding puts one cell over
+    /// is still in that cell's list.
+    #[inline]
+    fn range(&self, b: &Bounds) -> (u32, u32) {
+        let cell_of = |x: f64, i: usize| -> u32 {
+            let c = ((x - self.lo[i] as f64) / self.cell[i] as f64).floor();
+            (c.max(0.0) as u32).min(self.dims[i] - 1)
+        };
+        let margin = |i: usize| self.cell[i] as f64 * 1e-3;
+        let l = [0, 1, 2].map(|i| cell_of(b.lo[i] - margin(i), i));
+        let h = [0, 1, 2].map(|i| cell_of(b.hi[i] + margin(i), i));
+        (cell_pack(l[0], l[1], l[2]), cell_pack(h[0], h[1], h[2]))
+    }
+
+    /// The counting pass: every primitive's cell range into `ranges`, and
+    /// the references they make, exact in 64 bits. Stops early with `None`
+    /// once the count passes `cap` (then `ranges` is incomplete).
+    fn count(
+        &self,
+        bounds: &[Bounds],
+        cap: u64,
+        ranges: &mut Vec<(u32, u32)>,
+        progress: Progress,
+    ) -> Option<u64> {
+        ranges.clear();
+        let n = bounds.len() as u64;
+        let mut refs = 0u64;
+        for (k, chunk) in bounds.chunks(PROGRESS_EVERY).enumerate() {
+            progress(Stage::Count, (k * PROGRESS_EVERY) as u64, n);
+            for b in chunk {
+                let r = self.range(b);
+                refs = refs.saturating_add(refs_of(r));
+                ranges.push(r);
+            }
+            if refs > cap {
+                return None;
+            }
+        }
+        progress(Stage::Count, n, n);
+        Some(refs)
+    }
+}
+
+/// References a primitive with packed cell range `r` makes.
+#[inline]
+fn refs_of(r: (u32, u32)) -> u64 {
+    let l = cell_unpack(r.0);
+    let h = cell_unpack(r.1);
+    (0..3).map(|i| (h[i] - l[i] + 1) as u64).product()
 }
 
 /// Files every primitive (by its bounds) into every cell they overlap.
-/// `dims` overrides the heuristic.
-pub fn build(bounds: &[Bounds], dims: Option<[u32; 3]>) -> Grid {
+///
+/// `dims`: `--grid`, which is built as asked or refused; `None`: the
+/// heuristic (module docs). `max_refs(cells)`: the most references a grid
+/// of that many cells may hold within the memory budget. Refused (with
+/// the smallest grid tried and its exact count) when even that does not
+/// fit.
+pub fn build(
+    bounds: &[Bounds],
+    dims: Option<[u32; 3]>,
+    max_refs: &dyn Fn(u64) -> u64,
+    progress: Progress,
+) -> Result<Grid, Refusal> {
     if bounds.is_empty() {
-        return Grid {
+        return Ok(Grid {
             dims: [1, 1, 1],
             cell_start: vec![0, 0],
             ..Grid::default()
-        };
+        });
     }
     let all = bounds.iter().fold(Bounds::EMPTY, |a, b| a.union(b));
-    // Pad so that primitives touching the boundary are strictly inside.
-    let pad = all.diagonal().max(1e-30) * 1e-5;
-    let lo64 = all.lo.map(|x| x - pad);
-    let hi64 = all.hi.map(|x| x + pad);
-    let dims = dims
-        .unwrap_or_else(|| resolution(&all, bounds.len()))
-        .map(|d| d.clamp(1, GRID_MAX_DIM));
-    let lo = lo64.map(|x| x as f32);
-    let hi = hi64.map(|x| x as f32);
-    let cell = [0, 1, 2].map(|i| (hi[i] - lo[i]) / dims[i] as f32);
-    // A primitive's bounds grow by a small margin so that a hit the DDA's
-    // rounding puts one cell over is still in that cell's list.
-    let margin = [0, 1, 2].map(|i| cell[i] as f64 * 1e-3);
-    let cell_of = |x: f64, i: usize| -> u32 {
-        let c = ((x - lo[i] as f64) / cell[i] as f64).floor();
-        (c.max(0.0) as u32).min(dims[i] - 1)
+    let (lo, hi) = grid_box(&all);
+    let n = bounds.len() as u64;
+    let cap = |d: [u32; 3]| max_refs(cells_of(d)).min(MAX_REFS);
+    let mut ranges = Vec::with_capacity(bounds.len());
+    let layout = match dims {
+        Some(d) => {
+            let layout = Layout::new(lo, hi, d.map(|x| x.clamp(1, GRID_MAX_DIM)));
+            let refs = layout
+                .count(bounds, u64::MAX, &mut ranges, progress)
+                .unwrap_or(u64::MAX);
+            if refs > cap(layout.dims) {
+                return Err(Refusal {
+                    dims: layout.dims,
+                    cells: cells_of(layout.dims),
+                    refs,
+                });
+            }
+            layout
+        }
+        None => {
+            let target = resolution(&all, bounds.len());
+            let fit = [0, 1, 2].map(|i| target[i].min(f32_cap(lo[i], hi[i])));
+            choose(bounds, lo, hi, fit, n, &cap, &mut ranges, progress)?
+        }
     };
-    let ranges: Vec<(u32, u32)> = bounds
-        .iter()
-        .map(|b| {
-            let l = [0, 1, 2].map(|i| cell_of(b.lo[i] - margin[i], i));
-            let h = [0, 1, 2].map(|i| cell_of(b.hi[i] + margin[i], i));
-            (cell_pack(l[0], l[1], l[2]), cell_pack(h[0], h[1], h[2]))
-        })
-        .collect();
-    let ncells = dims[0] as usize * dims[1] as usize * dims[2] as usize;
-    let mut counts = vec![0u32; ncells + 1];
+    Ok(file(bounds, layout, ranges, progress))
+}
+
+/// The heuristic's descent from `dims` (module docs); leaves the chosen
+/// grid's ranges in `ranges`.
+#[allow(clippy::too_many_arguments)]
+fn choose(
+    bounds: &[Bounds],
+    lo: [f32; 3],
+    hi: [f32; 3],
+    mut dims: [u32; 3],
+    n: u64,
+    cap: &dyn Fn([u32; 3]) -> u64,
+    ranges: &mut Vec<(u32, u32)>,
+    progress: Progress,
+) -> Result<Layout, Refusal> {
+    let redundant = n.saturating_mul(REDUNDANT_REFS_PER_PRIM);
+    let mut other = Vec::new();
+    // The count of `dims` when the previous step already made it.
+    let mut known: Option<u64> = None;
+    loop {
+        let layout = Layout::new(lo, hi, dims);
+        let refs = match known.take() {
+            Some(r) => Some(r),
+            None => layout.count(bounds, cap(dims), ranges, progress),
+        };
+        let last = dims == [1, 1, 1];
+        match refs {
+            None if last => {
+                let refs = layout
+                    .count(bounds, u64::MAX, ranges, progress)
+                    .unwrap_or(u64::MAX);
+                return Err(Refusal {
+                    dims,
+                    cells: 1,
+                    refs,
+                });
+            }
+            None => dims = coarser(dims),
+            Some(r) if r == n.saturating_mul(cells_of(dims)) && !last => {
+                // Every primitive is in every cell: the grid separates
+                // nothing, and one cell does the same with N references.
+                dims = [1, 1, 1];
+            }
+            Some(r) if r <= redundant || last => return Ok(layout),
+            Some(r) => {
+                // Does refining from the coarser grid shorten the lists
+                // per cell enough? Count the coarser one until its count
+                // shows it does (then keep `dims`).
+                let c = coarser(dims);
+                let cl = Layout::new(lo, hi, c);
+                let enough = r as f64 * cells_of(c) as f64 / (REFINE_GAIN * cells_of(dims) as f64);
+                let stop = if enough >= u64::MAX as f64 {
+                    u64::MAX
+                } else {
+                    enough as u64
+                };
+                match cl.count(bounds, stop, &mut other, progress) {
+                    None => return Ok(layout),
+                    Some(r2) => {
+                        std::mem::swap(ranges, &mut other);
+                        known = Some(r2);
+                        dims = c;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The filing pass: the counting sort into `cell_start`/`refs` (at most
+/// `MAX_REFS`, so the 32-bit counts cannot wrap), then the empty-space
+/// distances.
+fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progress) -> Grid {
+    let dims = l.dims;
+    let ncells = cells_of(dims) as usize;
+    // Progress runs over both loops: 0..n counting, n..2n filing.
+    let n = bounds.len() as u64;
+    // The offsets, then the distances four to a word: allocated once.
+    let mut counts = Vec::with_capacity(ncells + 1 + ncells.div_ceil(4));
+    counts.resize(ncells + 1, 0u32);
     let for_cells = |r: &(u32, u32), f: &mut dyn FnMut(usize)| {
-        let l = super::layout::cell_unpack(r.0);
-        let h = super::layout::cell_unpack(r.1);
+        let l = cell_unpack(r.0);
+        let h = cell_unpack(r.1);
         for z in l[2]..=h[2] {
             for y in l[1]..=h[1] {
                 let row = (y as usize + dims[1] as usize * z as usize) * dims[0] as usize;
@@ -118,20 +380,29 @@ pub fn build(bounds: &[Bounds], dims: Option<[u32; 3]>) -> Grid {
             }
         }
     };
-    for r in &ranges {
-        for_cells(r, &mut |c| counts[c + 1] += 1);
+    for (k, chunk) in ranges.chunks(PROGRESS_EVERY).enumerate() {
+        progress(Stage::File, (k * PROGRESS_EVERY) as u64, 2 * n);
+        for r in chunk {
+            for_cells(r, &mut |c| counts[c + 1] += 1);
+        }
     }
     for i in 0..ncells {
         counts[i + 1] += counts[i];
     }
     let mut fill = counts.clone();
     let mut refs = vec![0u32; counts[ncells] as usize];
-    for (p, r) in ranges.iter().enumerate() {
-        for_cells(r, &mut |c| {
-            refs[fill[c] as usize] = p as u32;
-            fill[c] += 1;
-        });
+    for (k, chunk) in ranges.chunks(PROGRESS_EVERY).enumerate() {
+        progress(Stage::File, n + (k * PROGRESS_EVERY) as u64, 2 * n);
+        for (j, r) in chunk.iter().enumerate() {
+            let p = (k * PROGRESS_EVERY + j) as u32;
+            for_cells(r, &mut |c| {
+                refs[fill[c] as usize] = p;
+                fill[c] += 1;
+            });
+        }
     }
+    progress(Stage::File, 2 * n, 2 * n);
+    drop(fill);
     let skip = skip_distances(&counts, dims);
     let mut cell_start = counts;
     cell_start.extend(skip.chunks(4).map(|c| {
@@ -140,10 +411,10 @@ pub fn build(bounds: &[Bounds], dims: Option<[u32; 3]>) -> Grid {
             .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
     }));
     Grid {
-        lo,
-        hi,
+        lo: l.lo,
+        hi: l.hi,
         dims,
-        cell,
+        cell: l.cell,
         ranges,
         cell_start,
         refs,
@@ -292,6 +563,57 @@ mod tests {
         assert_eq!(resolution(&flat, 1_000_000)[2], 1);
     }
 
+    /// No budget, no progress.
+    fn build_free(bounds: &[Bounds], dims: Option<[u32; 3]>) -> Result<Grid, Refusal> {
+        build(bounds, dims, &|_| u64::MAX, &|_, _, _| {})
+    }
+
+    /// Every cell a primitive's range covers lists it, once; no other does.
+    fn assert_filed(g: &Grid, n: usize) {
+        let [nx, ny, nz] = g.dims.map(|d| d as usize);
+        let mut listed = vec![0usize; n];
+        for c in 0..nx * ny * nz {
+            let (x, y, z) = (
+                (c % nx) as u32,
+                ((c / nx) % ny) as u32,
+                (c / (nx * ny)) as u32,
+            );
+            let list = &g.refs[g.cell_start[c] as usize..g.cell_start[c + 1] as usize];
+            for &p in list {
+                let (l, h) = (
+                    cell_unpack(g.ranges[p as usize].0),
+                    cell_unpack(g.ranges[p as usize].1),
+                );
+                assert!(
+                    (l[0]..=h[0]).contains(&x)
+                        && (l[1]..=h[1]).contains(&y)
+                        && (l[2]..=h[2]).contains(&z)
+                );
+                listed[p as usize] += 1;
+            }
+        }
+        for (p, &k) in listed.iter().enumerate() {
+            assert_eq!(k as u64, refs_of(g.ranges[p]), "primitive {p}");
+        }
+        assert_eq!(g.refs.len(), listed.iter().sum::<usize>());
+    }
+
+    fn cube(c: [f64; 3], r: f64) -> Bounds {
+        Bounds {
+            lo: c.map(|x| x - r),
+            hi: c.map(|x| x + r),
+        }
+    }
+
+    /// n small boxes scattered in [-1, 1]³ (like `gen::random_spheres`).
+    fn scattered(n: usize) -> Vec<Bounds> {
+        let mut rng = crate::gen::Rng::new(7);
+        let r = 0.45 * 2.0 / (n as f64).cbrt();
+        (0..n)
+            .map(|_| cube([0, 1, 2].map(|_| rng.next_f64() * 2.0 - 1.0), r))
+            .collect()
+    }
+
     #[test]
     fn every_cell_a_primitive_overlaps_lists_it() {
         let bounds = vec![
@@ -304,7 +626,7 @@ mod tests {
                 hi: [3.0, 1.0, 2.0],
             },
         ];
-        let g = build(&bounds, Some([3, 3, 3]));
+        let g = build_free(&bounds, Some([3, 3, 3])).unwrap();
         assert_eq!(g.cell_start.len(), 28 + 7);
         let listed = |p: u32| {
             (0..27)
@@ -315,5 +637,181 @@ mod tests {
         };
         assert_eq!(listed(0), 2 * 3 * 2);
         assert_eq!(listed(1), 3 * 2 * 3);
+        assert_filed(&g, 2);
+    }
+
+    /// Scattered primitives keep the density heuristic's grid: the
+    /// counting pass finds them well under the redundancy threshold.
+    #[test]
+    fn scattered_primitives_keep_the_density_grid() {
+        let b = scattered(20_000);
+        let all = b.iter().fold(Bounds::EMPTY, |a, x| a.union(x));
+        let g = build_free(&b, None).unwrap();
+        assert_eq!(g.dims, resolution(&all, b.len()));
+        let per = g.refs.len() as f64 / b.len() as f64;
+        assert!(per > 4.0 && per < REDUNDANT_REFS_PER_PRIM as f64, "{per}");
+        assert_filed(&g, b.len());
+    }
+
+    /// The pile of identical spheres: every primitive overlaps
+    /// every cell of any grid, so the heuristic ends at one cell (one
+    /// reference each) instead of N × 3N references.
+    #[test]
+    fn identical_primitives_get_one_cell() {
+        let b = vec![cube([0.3, -2.0, 5.0], 0.5); 100_000];
+        let all = b.iter().fold(Bounds::EMPTY, |a, x| a.union(x));
+        assert!(
+            cells_of(resolution(&all, b.len())) > 100_000,
+            "the density target is fine"
+        );
+        let g = build_free(&b, None).unwrap();
+        assert_eq!(g.dims, [1, 1, 1]);
+        assert_eq!(g.refs.len(), b.len());
+        assert_filed(&g, b.len());
+    }
+
+    /// A pile of identical primitives inside a scattered field: the pile
+    /// sits in a few cells and the field keeps its grid.
+    #[test]
+    fn a_pile_inside_a_field_keeps_the_field_grid() {
+        let mut b = scattered(20_000);
+        b.extend(vec![cube([0.1, 0.2, 0.3], 0.01); 20_000]);
+        let all = b.iter().fold(Bounds::EMPTY, |a, x| a.union(x));
+        let g = build_free(&b, None).unwrap();
+        assert_eq!(g.dims, resolution(&all, b.len()));
+        assert_filed(&g, b.len());
+    }
+
+    /// Heavy but not total overlap (each box a tenth of the scene): the
+    /// grid coarsens until refining would shorten the lists, and every
+    /// primitive is still filed everywhere it reaches.
+    #[test]
+    fn overlapping_primitives_get_a_coarser_grid() {
+        let mut rng = crate::gen::Rng::new(3);
+        let b: Vec<Bounds> = (0..5000)
+            .map(|_| cube([0, 1, 2].map(|_| rng.next_f64()), 0.1))
+            .collect();
+        let all = b.iter().fold(Bounds::EMPTY, |a, x| a.union(x));
+        let target = resolution(&all, b.len());
+        let g = build_free(&b, None).unwrap();
+        assert!(cells_of(g.dims) < cells_of(target), "{:?}", g.dims);
+        assert!(
+            g.refs.len() as u64 <= REDUNDANT_REFS_PER_PRIM * b.len() as u64 || {
+                // or refining from the next coarser grid paid
+                let c = coarser(g.dims);
+                let (lo, hi) = grid_box(&all);
+                let r2 = Layout::new(lo, hi, c)
+                    .count(&b, u64::MAX, &mut Vec::new(), &|_, _, _| {})
+                    .unwrap();
+                g.refs.len() as f64 / cells_of(g.dims) as f64
+                    <= REFINE_GAIN * r2 as f64 / cells_of(c) as f64
+            }
+        );
+        assert_filed(&g, b.len());
+    }
+
+    /// Radii of 1e-120 and 5e-324 (the smallest f64) far from the camera:
+    /// no volume underflows to a 1023³ grid, and the f32 box keeps a
+    /// width.
+    #[test]
+    fn tiny_extents_get_a_small_grid_with_a_width() {
+        for r in [1e-120, 5e-324, 0.0] {
+            for n in [1usize, 1000] {
+                let b: Vec<Bounds> = (0..n)
+                    .map(|i| cube([0.0, 10.0 + i as f64 * r, 0.0], r))
+                    .collect();
+                let g = build_free(&b, None).unwrap();
+                // at most the flat-scene density (3 cells per primitive
+                // over a 1/1000 thickness), nowhere near 1023³
+                assert!(
+                    cells_of(g.dims) <= 3000 * n as u64,
+                    "r {r} n {n}: {:?}",
+                    g.dims
+                );
+                assert!(g.refs.len() <= 8 * n, "r {r} n {n}: {}", g.refs.len());
+                for i in 0..3 {
+                    assert!(g.hi[i] > g.lo[i] && g.cell[i] > 0.0, "r {r}: {g:?}");
+                }
+                assert_filed(&g, n);
+            }
+        }
+        let point = Bounds {
+            lo: [1.0; 3],
+            hi: [1.0; 3],
+        };
+        assert_eq!(resolution(&point, 1_000_000), [1, 1, 1]);
+        let tiny = cube([0.0; 3], 1e-120);
+        assert_eq!(resolution(&tiny, 1), [1, 1, 1]);
+        assert_eq!(resolution(&tiny, 1000), [14, 14, 14]);
+        let huge = cube([0.0; 3], 1e300);
+        assert_eq!(resolution(&huge, 1000), [14, 14, 14]);
+        let beyond = cube([0.0; 3], f64::MAX);
+        assert_eq!(resolution(&beyond, 1000), [1, 1, 1]);
+    }
+
+    /// `--grid 1023x1023x1023` over five primitives that fill it: 5.35 G
+    /// references, counted exactly (past u32) and refused, in O(N).
+    #[test]
+    fn an_explicit_grid_over_the_offsets_is_refused_with_its_count() {
+        let b = vec![cube([0.0; 3], 1.0); 5];
+        let r = build_free(&b, Some([1023; 3])).unwrap_err();
+        let cells = 1023u64 * 1023 * 1023;
+        assert_eq!(r.dims, [1023; 3]);
+        assert_eq!(r.cells, cells);
+        assert_eq!(r.refs, 5 * cells);
+        // within the offsets but over a budget of 100 M references
+        let r = build(&b[..2], Some([1023; 3]), &|_| 100_000_000, &|_, _, _| {}).unwrap_err();
+        assert_eq!(r.refs, 2 * cells);
+        // the same primitives under the heuristic: one cell
+        assert_eq!(build_free(&b, None).unwrap().dims, [1, 1, 1]);
+    }
+
+    /// The budget lowers the heuristic's resolution until the references
+    /// fit, and refuses only when one cell's (N) do not.
+    #[test]
+    fn the_budget_lowers_the_resolution() {
+        let b = scattered(5000);
+        let free = build_free(&b, None).unwrap();
+        let limit = free.refs.len() as u64 / 2;
+        let g = build(&b, None, &|_| limit, &|_, _, _| {}).unwrap();
+        assert!(g.refs.len() as u64 <= limit);
+        assert!(cells_of(g.dims) < cells_of(free.dims));
+        assert_filed(&g, b.len());
+        let r = build(&b, None, &|_| 4999, &|_, _, _| {}).unwrap_err();
+        assert_eq!((r.dims, r.refs), ([1, 1, 1], 5000));
+        assert!(build(&b, None, &|_| 5000, &|_, _, _| {}).is_ok());
+    }
+
+    #[test]
+    fn progress_reaches_the_end_of_each_pass() {
+        let b = scattered(200_000);
+        let log = std::sync::Mutex::new(Vec::new());
+        build(&b, None, &|_| u64::MAX, &|s, d, t| {
+            log.lock().unwrap().push((s, d, t))
+        })
+        .unwrap();
+        let log = log.into_inner().unwrap();
+        for stage in [Stage::Count, Stage::File] {
+            let mine: Vec<_> = log.iter().filter(|e| e.0 == stage).collect();
+            assert!(mine.len() > 2, "{stage:?}");
+            assert!(mine.iter().all(|e| e.1 <= e.2));
+            assert!(mine.windows(2).all(|w| w[0].1 <= w[1].1));
+            let last = mine.last().unwrap();
+            assert_eq!(last.1, last.2);
+        }
+    }
+
+    #[test]
+    fn coarser_halves_the_cells_down_to_one() {
+        let mut d = [1023u32, 1023, 1023];
+        let mut steps = 0;
+        while d != [1, 1, 1] {
+            let c = coarser(d);
+            assert!(cells_of(c) < cells_of(d));
+            assert!(cells_of(c) * 4 >= cells_of(d), "{d:?} → {c:?}");
+            d = c;
+            steps += 1;
+        }
+        assert!(steps <= 40);
     }
 }

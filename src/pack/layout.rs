@@ -40,6 +40,8 @@ pub struct Globals {
     pub trace: [u32; 4],
     /// x: min weight, y: surface offset (scene units), z, w: unused.
     pub params: [f32; 4],
+    /// x: counting flags (`FLAG_*`), y, z, w: unused.
+    pub flags: [u32; 4],
 }
 
 /// One primitive, 64 bytes. `kind_mat` = kind (low 4 bits) | material << 4.
@@ -125,9 +127,10 @@ mod tests {
     // or reordering on either side fails here (and in the GPU layout probe).
     #[test]
     fn sizes_and_offsets_match_std430() {
-        assert_eq!(size_of::<Globals>(), 13 * 16);
+        assert_eq!(size_of::<Globals>(), 14 * 16);
         assert_eq!(offset_of!(Globals, grid_dims), 8 * 16);
         assert_eq!(offset_of!(Globals, params), 12 * 16);
+        assert_eq!(offset_of!(Globals, flags), 13 * 16);
         assert_eq!(size_of::<Prim>(), 64);
         // One cache line each (see Prim).
         assert_eq!(std::mem::align_of::<Prim>(), 64);

@@ -5,10 +5,12 @@ pub mod grid;
 pub mod layout;
 pub mod pages;
 
+use crate::budget::{Budget, BudgetError, Need};
 use crate::constants::*;
 use crate::scene::{Scene, Shape};
 use glam::DVec3;
 use grid::Bounds;
+pub use grid::{Progress, Stage};
 use layout::{Globals, Light, Material, Prim};
 pub use pages::Pages;
 use std::time::Instant;
@@ -33,7 +35,11 @@ pub struct Settings {
     pub min_weight: f32,
     pub spp: u32,
     pub sampling: Sampling,
+    /// `--grid`: this resolution or a refusal; `None`: the heuristic.
     pub grid: Option<[u32; 3]>,
+    /// The memory the run may use (`--memory-limit`); packing refuses,
+    /// before allocating, a run whose estimate is over it.
+    pub budget: Budget,
 }
 
 impl Default for Settings {
@@ -46,6 +52,104 @@ impl Default for Settings {
             spp: 1,
             sampling: Sampling::Centers,
             grid: None,
+            budget: Budget::system(),
+        }
+    }
+}
+
+/// Largest image width or height (the shader's lattice indices and the
+/// image formats stay in 32 bits with room to spare).
+pub const MAX_IMAGE_SIZE: u32 = 65536;
+
+/// Why a scene cannot be packed: it or its image is too large.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PackError {
+    /// The estimate is over the memory budget.
+    #[error(transparent)]
+    Budget(#[from] BudgetError),
+    /// More references than the 32-bit offsets address.
+    #[error(
+        "the grid {} needs {refs} references, more than the {} its 32-bit offsets can address; {}",
+        dims_text(dims),
+        grid::MAX_REFS,
+        if *explicit { "choose a coarser --grid" } else { "the scene's primitives overlap too much" }
+    )]
+    GridRefs {
+        dims: [u32; 3],
+        refs: u64,
+        explicit: bool,
+    },
+    /// More primitives (or extra data) than 32-bit indices address.
+    #[error("the scene has {count} {what}, more than the {max} the packed format's 32-bit indices can address")]
+    TooMany {
+        what: &'static str,
+        count: u64,
+        max: u64,
+    },
+    /// An image side over `MAX_IMAGE_SIZE`.
+    #[error("image {what} {value} is over the limit of {MAX_IMAGE_SIZE}")]
+    ImageSize { what: &'static str, value: u32 },
+}
+
+impl PackError {
+    /// Every refusal is the user's to fix (a smaller image, scene or grid,
+    /// or a larger `--memory-limit`): the CLI exits with 2.
+    pub fn is_user_error(&self) -> bool {
+        true
+    }
+}
+
+fn dims_text(d: &[u32; 3]) -> String {
+    format!("{}x{}x{}", d[0], d[1], d[2])
+}
+
+/// How rays are counted (`RayStats`), set on the packed scene with
+/// `Packed::set_counting`. Both ways give the same image, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+pub enum Counting {
+    /// The rays whitted traces: a reflection ray where k_r > 0 (or on total
+    /// internal reflection), one shadow feeler counted per feeler cast.
+    #[default]
+    Traced,
+    /// As the SPD counts them (docs/spd.md): a surface with k_t > 0 also
+    /// spawns a reflection ray where k_r = 0 (weight 0: traced, with its
+    /// subtree, for the counts only; with `min_weight` > 0 such rays are
+    /// cut at once), and only feelers towards lights the surface faces
+    /// count as shadow rays.
+    Spd,
+}
+
+/// A named set of render settings (`--preset`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum Preset {
+    /// The SPD's testing procedure: 512 × 512 pixels, rays through the
+    /// pixel corners (513 × 513 eye rays), a tree depth of 5 counting the
+    /// eye ray (`max_depth` 4), no adaptive cut-off (`min_weight` 0), rays
+    /// counted as the SPD counts them.
+    Spd,
+}
+
+impl Preset {
+    /// The preset's settings (any of them may still be overridden).
+    pub fn settings(self) -> Settings {
+        match self {
+            Preset::Spd => Settings {
+                width: Some(512),
+                height: Some(512),
+                max_depth: 4,
+                min_weight: 0.0,
+                spp: 1,
+                sampling: Sampling::Corners,
+                grid: None,
+                budget: Budget::system(),
+            },
+        }
+    }
+
+    /// How the preset counts rays.
+    pub fn counting(self) -> Counting {
+        match self {
+            Preset::Spd => Counting::Spd,
         }
     }
 }
@@ -54,6 +158,8 @@ impl Default for Settings {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GridInfo {
     pub cells: [u32; 3],
+    /// Opaque primitives left out as exact copies of another.
+    pub duplicates: usize,
     pub refs: usize,
     pub bytes: usize,
     pub seconds: f64,
@@ -79,6 +185,23 @@ impl Packed {
     }
     pub fn height(&self) -> u32 {
         self.globals.image[1]
+    }
+
+    /// Counts rays `c`'s way from now on (both backends).
+    pub fn set_counting(&mut self, c: Counting) {
+        let f = &mut self.globals.flags[0];
+        match c {
+            Counting::Traced => *f &= !FLAG_SPD_COUNTING,
+            Counting::Spd => *f |= FLAG_SPD_COUNTING,
+        }
+    }
+
+    pub fn counting(&self) -> Counting {
+        if self.globals.flags[0] & FLAG_SPD_COUNTING != 0 {
+            Counting::Spd
+        } else {
+            Counting::Traced
+        }
     }
 }
 
@@ -372,19 +495,79 @@ fn spread3(v: u32) -> u64 {
     x
 }
 
+/// The Morton code of `b`'s centre in the box `all` (10 bits per axis).
+fn morton_key(all: &Bounds, e: &[f64; 3], b: &Bounds) -> u64 {
+    let q = [0, 1, 2].map(|i| {
+        let c = (b.lo[i] + b.hi[i]) * 0.5;
+        (((c - all.lo[i]) / e[i]) * 1023.0).clamp(0.0, 1023.0) as u32
+    });
+    spread3(q[0]) | spread3(q[1]) << 1 | spread3(q[2]) << 2
+}
+
 /// Puts primitives that are near in space near in memory (Morton order of
 /// their bounds' centres): a ray's tests then touch few cache lines, which
-/// is what keeps a million primitives from being memory-bound.
+/// is what keeps a million primitives from being memory-bound. Stable:
+/// primitives with one code keep the scene's order.
 fn morton_order(prims: &mut [(Prim, Bounds)]) {
     let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
     let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
-    prims.sort_by_cached_key(|(_, b)| {
-        let q = [0, 1, 2].map(|i| {
-            let c = (b.lo[i] + b.hi[i]) * 0.5;
-            (((c - all.lo[i]) / e[i]) * 1023.0).clamp(0.0, 1023.0) as u32
+    prims.sort_by_cached_key(|(_, b)| morton_key(&all, &e, b));
+}
+
+/// Drops every opaque primitive that is an exact copy of an earlier one
+/// (the same packed bytes: kind, material and f32 geometry), after
+/// `morton_order`; returns how many. The tracer reads only those bytes, so
+/// a copy gives the same hit at the same distance with the same shading,
+/// and a shadow feeler through an opaque primitive is blocked whether it
+/// crosses one copy or many: the image and the ray counts are unchanged.
+/// Transparent copies stay (each multiplies a feeler's transmittance).
+/// A pile of N identical spheres otherwise costs every ray N tests.
+/// Copies have one Morton code, so only runs of equal codes are searched:
+/// in ordinary scenes those are short and rare, and this costs one pass.
+fn drop_opaque_copies(prims: &mut Vec<(Prim, Bounds)>, opaque: &[bool]) -> usize {
+    let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
+    let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
+    let keys: Vec<u64> = prims.iter().map(|(_, b)| morton_key(&all, &e, b)).collect();
+    let mut keep = vec![true; prims.len()];
+    let mut dropped = 0;
+    let mut i = 0;
+    while i < prims.len() {
+        let mut j = i + 1;
+        while j < prims.len() && keys[j] == keys[i] {
+            j += 1;
+        }
+        if j - i > 1 {
+            // Copies of the run's first primitive need no hashing (a pile
+            // of one sphere is one long run of them).
+            let first = bytemuck::bytes_of(&prims[i].0);
+            let mut seen = std::collections::HashSet::new();
+            for k in i..j {
+                let p = &prims[k].0;
+                if !opaque.get(p.material() as usize).copied().unwrap_or(false) {
+                    continue;
+                }
+                let bytes = bytemuck::bytes_of(p);
+                let copy = if k > i && bytes == first {
+                    true
+                } else {
+                    !seen.insert(bytes)
+                };
+                if copy {
+                    keep[k] = false;
+                    dropped += 1;
+                }
+            }
+        }
+        i = j;
+    }
+    if dropped > 0 {
+        let mut k = 0;
+        prims.retain(|_| {
+            k += 1;
+            keep[k - 1]
         });
-        spread3(q[0]) | spread3(q[1]) << 1 | spread3(q[2]) << 2
-    });
+    }
+    dropped
 }
 
 /// Coefficients of the same quadric in coordinates relative to `o`
@@ -414,16 +597,111 @@ pub fn relative_quadric(k: &[f64; 10], o: DVec3) -> [f64; 10] {
     }
 }
 
-/// Packs a scene for rendering with `settings`.
-pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
+/// What a scene will pack into, counted before anything is built:
+/// primitives (an upper bound: degenerate triangles are dropped later),
+/// `extra` entries, and the bytes the loaded scene holds.
+pub fn census(scene: &Scene) -> (u64, u64, u64) {
+    use std::mem::size_of;
+    let mut prims = 0u64;
+    let mut extra = 0u64;
+    let mut bytes = (size_of::<Scene>()
+        + scene.objects.capacity() * size_of::<crate::scene::Object>()
+        + scene.lights.capacity() * size_of::<crate::scene::Light>()
+        + scene.materials.capacity() * size_of::<crate::scene::Material>())
+        as u64;
+    for m in &scene.materials {
+        bytes += m.name.capacity() as u64;
+    }
+    for o in &scene.objects {
+        match &o.shape {
+            Shape::Mesh(m) => {
+                let t = m.triangles.len() as u64;
+                prims += t;
+                if m.normals.is_some() {
+                    extra += 3 * t;
+                }
+                bytes += (size_of::<crate::scene::Mesh>()
+                    + m.positions.capacity() * size_of::<DVec3>()
+                    + m.normals.as_ref().map_or(0, |n| n.capacity()) * size_of::<DVec3>()
+                    + m.triangles.capacity() * size_of::<[u32; 3]>())
+                    as u64;
+            }
+            Shape::Polygon { vertices } => {
+                prims += 1;
+                if vertices.len() > 3 {
+                    extra += vertices.len() as u64;
+                }
+                bytes += (vertices.capacity() * size_of::<DVec3>()) as u64;
+            }
+            Shape::Triangle { normals, .. } => {
+                prims += 1;
+                if normals.is_some() {
+                    extra += 3;
+                    bytes += size_of::<[DVec3; 3]>() as u64;
+                }
+            }
+            Shape::Quadric { .. } => {
+                prims += 1;
+                extra += 3;
+            }
+            _ => prims += 1,
+        }
+    }
+    (prims, extra, bytes)
+}
+
+/// Packs a scene for rendering with `settings`, or refuses it by estimate
+/// (before allocating) when it does not fit `settings.budget`.
+pub fn pack(scene: &Scene, settings: &Settings) -> Result<Packed, PackError> {
+    pack_with_progress(scene, settings, &|_, _, _| {})
+}
+
+/// `pack`, reporting the grid build's passes: `progress(stage, done,
+/// total)` (`Stage`). The CLI shows a bar when they take long.
+pub fn pack_with_progress(
+    scene: &Scene,
+    settings: &Settings,
+    progress: Progress,
+) -> Result<Packed, PackError> {
     let cam = &scene.camera;
     let origin = cam.from;
     let width = settings.width.unwrap_or(cam.width).max(1);
     let height = settings.height.unwrap_or(cam.height).max(1);
+    for (what, value) in [("width", width), ("height", height)] {
+        if value > MAX_IMAGE_SIZE {
+            return Err(PackError::ImageSize { what, value });
+        }
+    }
+    let (n_prims, n_extra, scene_bytes) = census(scene);
+    for (what, count) in [("primitives", n_prims), ("extra data entries", n_extra)] {
+        if count > u32::MAX as u64 {
+            return Err(PackError::TooMany {
+                what,
+                count,
+                max: u32::MAX as u64,
+            });
+        }
+    }
+    let mut need = Need {
+        width,
+        height,
+        corners: settings.sampling == Sampling::Corners,
+        scene_objects: scene.objects.len() as u64,
+        scene_bytes,
+        prims: n_prims,
+        bounded: n_prims,
+        extra: n_extra,
+        cells: 1,
+        refs: 0,
+        explicit_grid: settings.grid.is_some(),
+    };
+    // The image and the primitives, before any of them is allocated.
+    settings.budget.check(&need)?;
 
     let mut b = Builder {
         origin,
-        bounded: Vec::new(),
+        // The census counts them (at most), so the array never regrows.
+        bounded: Vec::with_capacity(n_prims as usize),
         unbounded: Vec::new(),
         extra: Vec::new(),
         features: 0,
@@ -481,9 +759,42 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
         .fold(Bounds::EMPTY, |a, (_, bb)| a.union(bb));
     let t0 = Instant::now();
     take_out_giants(&finite, &mut b.bounded, &mut b.unbounded);
+    let n = b.bounded.len() as u64;
+    progress(Stage::Sort, 0, n);
     morton_order(&mut b.bounded);
+    let opaque: Vec<bool> = scene
+        .materials
+        .iter()
+        .map(|m| m.kt.max_element() <= 0.0)
+        .collect();
+    let duplicates = drop_opaque_copies(&mut b.bounded, &opaque);
+    let n = b.bounded.len() as u64;
+    progress(Stage::Sort, n, n);
     let bounds: Vec<Bounds> = b.bounded.iter().map(|(_, bb)| *bb).collect();
-    let g = grid::build(&bounds, settings.grid);
+    need.prims = (b.bounded.len() + b.unbounded.len()) as u64;
+    need.bounded = n;
+    need.extra = b.extra.len() as u64;
+    let budget = &settings.budget;
+    let max_refs = |cells: u64| need.max_refs(budget, cells);
+    let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
+        Ok(g) => g,
+        Err(r) => {
+            let over = Need {
+                cells: r.cells,
+                refs: r.refs,
+                ..need
+            };
+            return Err(match budget.check(&over) {
+                Err(e) => e.into(),
+                Ok(()) => PackError::GridRefs {
+                    dims: r.dims,
+                    refs: r.refs,
+                    explicit: settings.grid.is_some(),
+                },
+            });
+        }
+    };
+    drop(bounds);
     let grid_seconds = t0.elapsed().as_secs_f64();
     let n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
@@ -509,7 +820,8 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
         Sampling::Centers if settings.spp > 1 => SAMPLING_JITTER,
         Sampling::Centers => SAMPLING_CENTERS,
     };
-    let ncells = g.dims[0] * g.dims[1] * g.dims[2];
+    // At most 1023³ < 2³² (GRID_MAX_DIM).
+    let ncells = grid::cells_of(g.dims) as u32;
     let globals = Globals {
         cam_right: v4(right * half_w, 0.0),
         cam_up: v4(up * half_h, 0.0),
@@ -539,14 +851,16 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
             0.0,
             0.0,
         ],
+        flags: [0; 4],
     };
     let grid_info = GridInfo {
         cells: g.dims,
+        duplicates,
         refs: g.refs.len(),
         bytes: (g.cell_start.len() + g.refs.len()) * 4,
         seconds: grid_seconds,
     };
-    Packed {
+    Ok(Packed {
         globals,
         prims: prims.into(),
         extra: b.extra.into(),
@@ -555,7 +869,7 @@ pub fn pack(scene: &Scene, settings: &Settings) -> Packed {
         cell_start: g.cell_start.into(),
         refs: g.refs.into(),
         grid: grid_info,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -643,7 +957,7 @@ mod tests {
             objects,
             source: "t".into(),
         };
-        let p = pack(&s, &Settings::default());
+        let p = pack(&s, &Settings::default()).unwrap();
         assert_eq!(p.globals.counts[0], 100, "the spheres are in the grid");
         assert_eq!(
             p.globals.counts[1], 101,
@@ -652,6 +966,268 @@ mod tests {
         assert_eq!(p.prims[100].kind(), KIND_POLYGON);
         // the grid fits the spheres, not the floor
         assert!(p.globals.grid_max[0] - p.globals.grid_min[0] < 1.2);
+    }
+
+    fn scene_of(objects: Vec<crate::scene::Object>, glass: bool) -> Scene {
+        use crate::scene::{Camera, Light, Material};
+        let m = if glass {
+            Material {
+                kt: DVec3::splat(0.8),
+                ior: 1.5,
+                ..Material::default()
+            }
+        } else {
+            Material::default()
+        };
+        Scene {
+            camera: Camera {
+                from: DVec3::new(0.0, -6.0, 2.0),
+                at: DVec3::ZERO,
+                up: DVec3::Z,
+                fov: 40.0,
+                width: 24,
+                height: 16,
+            },
+            background: DVec3::new(0.1, 0.1, 0.2),
+            ambient: DVec3::splat(0.1),
+            lights: vec![Light {
+                position: DVec3::new(4.0, -3.0, 5.0),
+                color: DVec3::ONE,
+                falloff: [1.0, 0.0, 0.0],
+            }],
+            materials: vec![m],
+            objects,
+            source: "t".into(),
+        }
+    }
+
+    fn spheres(n: usize, center: DVec3, radius: f64) -> Vec<crate::scene::Object> {
+        vec![
+            crate::scene::Object {
+                shape: Shape::Sphere { center, radius },
+                material: 0,
+            };
+            n
+        ]
+    }
+
+    fn small() -> Settings {
+        Settings {
+            budget: Budget::bytes(1 << 30),
+            ..Settings::default()
+        }
+    }
+
+    /// The 100 k copies of one sphere: one primitive, one cell,
+    /// and the image and ray counts of the single sphere.
+    #[test]
+    fn opaque_copies_pack_and_render_as_one() {
+        let one = pack(&scene_of(spheres(1, DVec3::ZERO, 1.0), false), &small()).unwrap();
+        let many = pack(
+            &scene_of(spheres(100_000, DVec3::ZERO, 1.0), false),
+            &small(),
+        )
+        .unwrap();
+        assert_eq!(many.globals.counts[0], 1);
+        assert_eq!(many.grid.duplicates, 99_999);
+        assert_eq!(many.grid.refs, 1);
+        let (a, b) = (
+            crate::cpu::render(&one, &|_, _| {}),
+            crate::cpu::render(&many, &|_, _| {}),
+        );
+        assert!(a.stats.eye_hit > 0);
+        assert_eq!(a.pixels, b.pixels);
+        assert_eq!(a.stats, b.stats);
+    }
+
+    /// Transparent copies stay (each dims a shadow), yet the grid is one
+    /// cell with one reference each, not N × 3N.
+    #[test]
+    fn transparent_copies_stay_in_one_cell() {
+        let p = pack(
+            &scene_of(spheres(100_000, DVec3::ZERO, 1.0), true),
+            &small(),
+        )
+        .unwrap();
+        assert_eq!(p.globals.counts[0], 100_000);
+        assert_eq!(p.grid.duplicates, 0);
+        assert_eq!(p.grid.cells, [1, 1, 1]);
+        assert_eq!(p.grid.refs, 100_000);
+    }
+
+    /// Copies only of the same primitive: spheres one f32 step apart, or
+    /// in another material, all stay.
+    #[test]
+    fn near_copies_stay() {
+        let mut objects = spheres(3, DVec3::ZERO, 1.0);
+        objects[1].shape = Shape::Sphere {
+            center: DVec3::ZERO,
+            radius: 1.0 + f32::EPSILON as f64,
+        };
+        objects[2].material = 1;
+        let mut s = scene_of(objects, false);
+        s.materials.push(crate::scene::Material::default());
+        let p = pack(&s, &small()).unwrap();
+        assert_eq!((p.globals.counts[0], p.grid.duplicates), (3, 0));
+    }
+
+    /// Radii of 1e-120 and 5e-324 (scene volume underflows), and 1000
+    /// tiny spheres at one point: a small grid, and a render.
+    #[test]
+    fn tiny_radii_get_a_small_grid() {
+        for (n, r) in [(1, 1e-120), (1, 5e-324), (1000, 1e-120)] {
+            let mut objects = spheres(n, DVec3::ZERO, r);
+            for (i, o) in objects.iter_mut().enumerate() {
+                o.shape = Shape::Sphere {
+                    center: DVec3::new(i as f64 * 1e-300, 0.0, 0.0),
+                    radius: r,
+                };
+            }
+            let p = pack(&scene_of(objects, false), &small()).unwrap();
+            let cells: u64 = p.grid.cells.iter().map(|&c| c as u64).product();
+            assert!(cells <= 3000 * n as u64, "{n} × {r}: {:?}", p.grid.cells);
+            assert!(p.grid.refs <= 8 * n, "{n} × {r}: {}", p.grid.refs);
+            let f = crate::cpu::render(&p, &|_, _| {});
+            assert_eq!(f.pixels.len(), 24 * 16);
+        }
+    }
+
+    /// The image at every option's limit: refused by estimate (never
+    /// allocated, never wrapped), the count exact in 64 bits.
+    #[test]
+    fn the_largest_images_are_refused_by_estimate() {
+        let s = scene_of(spheres(1, DVec3::ZERO, 1.0), false);
+        for sampling in [Sampling::Centers, Sampling::Corners] {
+            let settings = Settings {
+                width: Some(MAX_IMAGE_SIZE),
+                height: Some(MAX_IMAGE_SIZE),
+                spp: 4096,
+                max_depth: MAX_DEPTH_LIMIT,
+                sampling,
+                ..small()
+            };
+            let Err(PackError::Budget(e)) = pack(&s, &settings) else {
+                panic!("65536² was not refused");
+            };
+            let side = MAX_IMAGE_SIZE as u64 + (sampling == Sampling::Corners) as u64;
+            assert_eq!(e.item.what, crate::budget::What::Image);
+            assert_eq!(e.item.count, side * side);
+            assert!(e.item.bytes >= side * side * crate::budget::SAMPLE_BYTES);
+            assert_eq!(e.limit, 1 << 30);
+            let msg = e.to_string();
+            assert!(msg.contains("render a smaller image"), "{msg}");
+        }
+        for (w, h) in [(MAX_IMAGE_SIZE + 1, 1), (1, u32::MAX)] {
+            let settings = Settings {
+                width: Some(w),
+                height: Some(h),
+                ..small()
+            };
+            assert!(matches!(
+                pack(&s, &settings),
+                Err(PackError::ImageSize { .. })
+            ));
+        }
+        // a 65536 × 1 strip fits and packs
+        let strip = Settings {
+            width: Some(MAX_IMAGE_SIZE),
+            height: Some(1),
+            spp: 4096,
+            ..small()
+        };
+        assert_eq!(pack(&s, &strip).unwrap().width(), MAX_IMAGE_SIZE);
+    }
+
+    /// `--grid 1023x1023x1023`: refused by estimate, naming the cells,
+    /// the limit and both ways out.
+    #[test]
+    fn an_explicit_grid_over_budget_is_refused() {
+        let s = scene_of(spheres(1, DVec3::ZERO, 1.0), false);
+        let settings = Settings {
+            grid: Some([GRID_MAX_DIM; 3]),
+            ..small()
+        };
+        let Err(PackError::Budget(e)) = pack(&s, &settings) else {
+            panic!("not refused");
+        };
+        assert_eq!(e.item.what, crate::budget::What::Grid);
+        assert_eq!(e.need.cells, 1023 * 1023 * 1023);
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with("the grid needs 23 GiB for 1.1 G cells and 1.1 G references"),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("--memory-limit") && msg.contains("coarser --grid"),
+            "{msg}"
+        );
+        // within the offsets and the budget, an explicit grid is built as asked
+        let settings = Settings {
+            grid: Some([64, 1, 1]),
+            ..small()
+        };
+        assert_eq!(pack(&s, &settings).unwrap().grid.cells, [64, 1, 1]);
+    }
+
+    /// Under a small budget the heuristic picks a coarser grid, and the
+    /// image is the same as with the full one.
+    #[test]
+    fn a_small_budget_coarsens_the_grid_not_the_image() {
+        let s = crate::gen::random_spheres(20_000, 1);
+        let settings = |budget| Settings {
+            width: Some(48),
+            height: Some(32),
+            budget,
+            ..Settings::default()
+        };
+        let full = pack(&s, &settings(Budget::unlimited())).unwrap();
+        let need = |p: &Packed| {
+            let (prims, extra, scene_bytes) = census(&s);
+            Need {
+                width: 48,
+                height: 32,
+                scene_objects: s.objects.len() as u64,
+                scene_bytes,
+                prims,
+                bounded: prims,
+                extra,
+                cells: p.grid.cells.iter().map(|&c| c as u64).product(),
+                refs: p.grid.refs as u64,
+                ..Need::default()
+            }
+        };
+        let limit = need(&full).peak() - full.grid.refs as u64 * 4;
+        let tight = pack(&s, &settings(Budget::bytes(limit))).unwrap();
+        assert!(tight.grid.refs < full.grid.refs);
+        assert!(Budget::bytes(limit).fits(&need(&tight)));
+        let (a, b) = (
+            crate::cpu::render(&full, &|_, _| {}),
+            crate::cpu::render(&tight, &|_, _| {}),
+        );
+        assert_eq!(a.pixels, b.pixels);
+        assert_eq!(a.stats, b.stats);
+        // a budget below the primitives themselves: refused, naming them
+        let Err(PackError::Budget(e)) = pack(&s, &settings(Budget::bytes(1 << 20))) else {
+            panic!("not refused");
+        };
+        assert_eq!(e.item.what, crate::budget::What::Primitives);
+    }
+
+    #[test]
+    fn the_spd_preset_and_its_counting() {
+        let s = Preset::Spd.settings();
+        assert_eq!((s.width, s.height), (Some(512), Some(512)));
+        assert_eq!((s.max_depth, s.min_weight), (4, 0.0));
+        assert_eq!(s.sampling, Sampling::Corners);
+        let scene = crate::gen::random_spheres(10, 1);
+        let mut p = pack(&scene, &s).unwrap();
+        assert_eq!(p.counting(), Counting::Traced);
+        assert_eq!(p.globals.image, [512, 512, 1, SAMPLING_CORNERS]);
+        p.set_counting(Preset::Spd.counting());
+        assert_eq!(p.counting(), Counting::Spd);
+        assert_eq!(p.globals.flags[0], FLAG_SPD_COUNTING);
+        p.set_counting(Counting::Traced);
+        assert_eq!(p.globals.flags, [0; 4]);
     }
 
     #[test]

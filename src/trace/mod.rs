@@ -40,9 +40,16 @@ impl<'a> SceneView<'a> {
     pub fn has(&self, feature: u32) -> bool {
         self.globals.trace[1] & feature != 0
     }
+
+    /// Rays are counted as the SPD counts them (`FLAG_SPD_COUNTING`).
+    #[inline(always)]
+    pub fn spd_counting(&self) -> bool {
+        self.globals.flags[0] & crate::constants::FLAG_SPD_COUNTING != 0
+    }
 }
 
-/// Ray counts as the SPD defines them.
+/// Ray counts as the SPD defines them (to the letter under
+/// `pack::Counting::Spd`: docs/spd.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct RayStats {
     pub eye: u64,

@@ -60,7 +60,11 @@ pub fn shade<F: Real>(
         if !facing && !highlight_t {
             continue;
         }
-        stats.shadow += 1;
+        // The SPD counts a feeler only towards a light the surface faces
+        // (its rule 10): the transmission highlight's are not counted.
+        if facing || !s.spd_counting() {
+            stats.shadow += 1;
+        }
         let o = if l.dot(ngf) > F::zero() {
             p + ngf * eps
         } else {

@@ -7,6 +7,11 @@
 //! k_r/k_t along its path times its medium's Beer–Lambert attenuation, so
 //! I = I_L + k_r I_R + k_t I_T is summed in place. A branch ends at the
 //! depth limit or when its weight (largest channel) falls under min weight.
+//!
+//! Under SPD counting (`SceneView::spd_counting`, docs/spd.md) a surface
+//! with k_t > 0 also spawns a reflection ray where k_r = 0, as the SPD's
+//! reference tracer did; its weight is 0, so it and its subtree are traced
+//! for the ray counts only and add nothing to the image.
 
 use super::grid::{closest_hit, Work};
 use super::intersect::{normals, RayPre};
@@ -38,6 +43,7 @@ pub fn trace_ray<F: Real>(
     let min_weight = F::of(g.params[0]);
     let eps = F::of(g.params[1]);
     let background = V3::<F>::of(&g.background);
+    let spd = s.spd_counting();
     let mut stack = [Entry::<F>::default(); STACK_SIZE as usize];
     stack[0] = Entry {
         o: ray.o,
@@ -75,7 +81,11 @@ pub fn trace_ray<F: Real>(
         let n = if front { ns } else { -ns };
         let ngf = if front { ng } else { -ng };
         let local = shade(s, mat, p, e.d, n, ngf, front, stats, work);
-        color += w.mul_elem(local);
+        // A ray of weight 0 (SPD counting) adds nothing, even where its
+        // local intensity is not finite.
+        if w.max_elem() > F::zero() {
+            color += w.mul_elem(local);
+        }
         if e.depth >= max_depth {
             continue;
         }
@@ -107,7 +117,7 @@ pub fn trace_ray<F: Real>(
                 }
             }
         }
-        if refl.max_elem() > F::zero() {
+        if refl.max_elem() > F::zero() || (spd && kt.max_elem() > F::zero()) {
             let wr = w.mul_elem(refl);
             if wr.max_elem() >= min_weight {
                 stats.reflect += 1;

@@ -3,9 +3,68 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 use whitted::gpu::{Gpu, GpuError, GpuOptions};
 use whitted::pack::{self, Packed, Settings};
+
+/// The logger of a test binary: env_logger (RUST_LOG, default `warn`)
+/// prints; every record of level warn or above is also kept for `logged`.
+struct TestLog {
+    print: env_logger::Logger,
+    kept: Mutex<Vec<(log::Level, String)>>,
+}
+
+impl log::Log for TestLog {
+    fn enabled(&self, m: &log::Metadata) -> bool {
+        m.level() <= log::Level::Warn || self.print.enabled(m)
+    }
+    fn log(&self, r: &log::Record) {
+        if r.level() <= log::Level::Warn {
+            self.kept
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .push((r.level(), r.args().to_string()));
+        }
+        self.print.log(r);
+    }
+    fn flush(&self) {}
+}
+
+fn test_log() -> &'static TestLog {
+    static LOG: OnceLock<&'static TestLog> = OnceLock::new();
+    LOG.get_or_init(|| {
+        let print =
+            env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
+                .is_test(true)
+                .build();
+        let max = print.filter().max(log::LevelFilter::Warn);
+        let me: &'static TestLog = Box::leak(Box::new(TestLog {
+            print,
+            kept: Mutex::new(Vec::new()),
+        }));
+        log::set_logger(me).expect("one logger per test binary");
+        log::set_max_level(max);
+        me
+    })
+}
+
+/// Installs the test logger (once per binary).
+pub fn init_log() {
+    test_log();
+}
+
+/// Every warning and error logged so far in this binary whose text
+/// contains `needle`.
+pub fn logged(needle: &str) -> Vec<(log::Level, String)> {
+    test_log()
+        .kept
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .iter()
+        .filter(|(_, m)| m.contains(needle))
+        .cloned()
+        .collect()
+}
 
 /// `WHITTED_REQUIRE_GPU=1`: a missing Vulkan device fails the test.
 pub fn require_gpu() -> bool {
@@ -18,6 +77,7 @@ pub fn require_gpu() -> bool {
 pub fn gpu() -> Option<&'static Gpu> {
     static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
     GPU.get_or_init(|| {
+        init_log();
         // Before the instance exists: the layer is chosen at creation.
         std::env::set_var("WHITTED_VALIDATION", "1");
         match Gpu::new(&GpuOptions::default()) {
@@ -61,13 +121,13 @@ pub fn repo() -> PathBuf {
 
 pub fn load(path: &Path, settings: &Settings) -> Packed {
     let s = whitted::scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-    pack::pack(&s, settings)
+    pack::pack(&s, settings).unwrap()
 }
 
 pub fn parse(text: &str, settings: &Settings) -> Packed {
     let s =
         whitted::scene::parse_str(text, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"));
-    pack::pack(&s, settings)
+    pack::pack(&s, settings).unwrap()
 }
 
 pub fn small(w: u32, h: u32) -> Settings {

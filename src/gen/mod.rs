@@ -1,4 +1,5 @@
-//! Procedural scenes for benchmarks and tests.
+//! Procedural scenes for benchmarks and tests: random spheres and a
+//! sphereflake here, and the SPD's seven scenes in `spd`.
 //!
 //! `random_spheres(n, seed)`: n spheres scattered uniformly in the cube
 //! [-1, 1]³ with radius 0.45 × their mean spacing (2/∛n), so a ray meets
@@ -8,6 +9,8 @@
 //! is about a sixth of its side), so the picture and the ray count change
 //! little with n: render time measures the acceleration structure. Three lights, a floor (a large square), four materials (one of
 //! them a mirror).
+
+pub mod spd;
 
 use crate::scene::{Camera, Light, Material, Object, Scene, Shape};
 use glam::DVec3;

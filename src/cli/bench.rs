@@ -1,0 +1,333 @@
+//! `whitted bench`: the suite, the engines, the table, CSV and plots
+//! (the measuring itself is `crate::bench`).
+
+use super::{Bar, Ui};
+use crate::bench::{self, Case, Engine, Plan};
+use crate::error::user;
+use crate::files::{self, Dest, Output};
+use crate::gen;
+use crate::gen::spd::{self, SpdScene};
+use crate::scene::Scene;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use std::path::{Path, PathBuf};
+
+/// Which scenes the suite holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Suite {
+    /// The SPD's seven scenes (generated at --size) under --preset spd.
+    Spd,
+    /// The example scenes in --scenes (default `scenes/`) at their own size.
+    Examples,
+    /// 20 000 random spheres (`whitted generate --count 20000`), 1024x768, depth 5.
+    Spheres,
+}
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Scene groups to run (comma-separated); default: all of them.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub suite: Vec<Suite>,
+    /// SPD size factor for the SPD scenes (default: each scene's own, as
+    /// `whitted generate NAME`).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub size: Option<u32>,
+    /// Instead of the suite: SPD balls of size 1 to 6 (--preset spd) and random
+    /// spheres from 1 k to 1 M, to see how time, rays and memory grow with
+    /// the primitive count (fitted exponents printed; --plot draws them).
+    #[arg(long, conflicts_with = "suite")]
+    pub scaling: bool,
+    /// Timed runs per case and engine (after the warm-up).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub runs: u32,
+    /// Untimed runs per case and engine first.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100))]
+    pub warmup: u32,
+    /// whitted backends to time (comma-separated): default every one this
+    /// machine has (the CPU mirror, and the GPU when there is a Vulkan
+    /// device, lavapipe included).
+    #[arg(long, value_delimiter = ',', value_parser = ["cpu", "gpu"])]
+    pub backends: Vec<String>,
+    /// Also render each scene with POV-Ray 3.7 (exported by `whitted
+    /// export`, same size and depth, all cores, no anti-aliasing: pixel
+    /// centres, or the corner rays of --preset spd),
+    /// interleaved with ours, and report the time ratio and the image
+    /// difference (PSNR, mean FLIP).
+    #[arg(long, value_name = "povray", value_parser = ["povray"])]
+    pub vs: Option<String>,
+    /// Render every case at this size instead (quick checks; figures at
+    /// other sizes are not the suite's).
+    #[arg(long, value_name = "WxH", value_parser = super::options::parse_workgroup)]
+    pub resolution: Option<[u32; 2]>,
+    /// Only the cases whose names contain one of these (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// Where the example scenes are.
+    #[arg(long, default_value = "scenes")]
+    pub scenes: PathBuf,
+    /// Write the results as CSV.
+    #[arg(long, value_name = "FILE.csv")]
+    pub csv: Option<PathBuf>,
+    /// Draw the results (.svg or .png); with --scaling, FILE is render time
+    /// and FILE-wall, FILE-rays, FILE-memory beside it.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+    /// Keep the generated scenes, images and stats in this directory
+    /// (default: a temporary directory, removed afterwards).
+    #[arg(long, value_name = "DIR")]
+    pub keep: Option<PathBuf>,
+}
+
+/// Writes `scene` as NFF into `dir` and returns its path.
+fn write_scene(dir: &Path, name: &str, scene: &Scene) -> Result<PathBuf> {
+    let p = dir.join(format!("{}.nff", bench::slug(name)));
+    let text = crate::export::to_nff(scene)?;
+    std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
+    Ok(p)
+}
+
+fn suite_cases(a: &BenchArgs, dir: &Path) -> Result<Vec<Case>> {
+    let suites = if a.suite.is_empty() {
+        Suite::value_variants().to_vec()
+    } else {
+        a.suite.clone()
+    };
+    let mut cases = Vec::new();
+    for s in suites {
+        match s {
+            Suite::Spd => {
+                for sc in SpdScene::ALL {
+                    let scene = spd::generate(sc, a.size).map_err(|e| user(anyhow!(e)))?;
+                    let size = a.size.unwrap_or(sc.default_size());
+                    let name = format!("{}-{size}", sc.name());
+                    let p = write_scene(dir, &name, &scene)?;
+                    cases.push(Case::new(&name, "spd", &p, &scene, &["--preset", "spd"]));
+                }
+            }
+            Suite::Examples => {
+                if !a.scenes.is_dir() {
+                    log::warn!(
+                        "{}: no such directory; the example scenes are skipped (--scenes)",
+                        a.scenes.display()
+                    );
+                    continue;
+                }
+                let mut files: Vec<PathBuf> = std::fs::read_dir(&a.scenes)
+                    .with_context(|| format!("cannot list {}", a.scenes.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| matches!(files::extension(p).as_deref(), Some("toml" | "nff")))
+                    .collect();
+                files.sort();
+                for f in files {
+                    let scene = crate::scene::load(&f).map_err(user)?;
+                    let name = f
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    cases.push(Case::new(&name, "example", &f, &scene, &[]));
+                }
+            }
+            Suite::Spheres => {
+                let scene = gen::random_spheres(20_000, 1);
+                let p = write_scene(dir, "spheres-20k", &scene)?;
+                cases.push(Case::new(
+                    "spheres-20k",
+                    "spheres",
+                    &p,
+                    &scene,
+                    &["--width", "1024", "--height", "768", "--max-depth", "5"],
+                ));
+            }
+        }
+    }
+    Ok(cases)
+}
+
+fn scaling_cases(dir: &Path) -> Result<Vec<Case>> {
+    let mut cases = Vec::new();
+    for level in 1..=6 {
+        let scene = gen::sphereflake(level);
+        let name = format!("sphereflake-{level}");
+        let p = write_scene(dir, &name, &scene)?;
+        cases.push(Case::new(
+            &name,
+            "sphereflake",
+            &p,
+            &scene,
+            &[
+                "--width",
+                "512",
+                "--height",
+                "512",
+                "--sampling",
+                "corners",
+                "--max-depth",
+                "4",
+                "--min-weight",
+                "0",
+            ],
+        ));
+    }
+    for n in [1_000usize, 10_000, 100_000, 1_000_000] {
+        let scene = gen::random_spheres(n, 1);
+        let name = format!("spheres-{n}");
+        let p = write_scene(dir, &name, &scene)?;
+        cases.push(Case::new(
+            &name,
+            "spheres",
+            &p,
+            &scene,
+            &["--width", "512", "--height", "384", "--max-depth", "5"],
+        ));
+    }
+    Ok(cases)
+}
+
+/// The whitted backends to time.
+fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
+    let gpu_name = crate::gpu::devices().ok().and_then(|l| {
+        crate::gpu::choose(&l, None, false)
+            .ok()
+            .map(|i| l[i].name.clone())
+    });
+    let wanted: Vec<String> = if a.backends.is_empty() {
+        let mut v = vec!["cpu".to_string()];
+        if gpu_name.is_some() {
+            v.push("gpu".into());
+        }
+        v
+    } else {
+        a.backends.clone()
+    };
+    let mut out = Vec::new();
+    for b in wanted {
+        let label = if b == "gpu" {
+            let name = gpu_name.as_deref().ok_or_else(|| {
+                user(anyhow!(
+                    "--backends gpu: there is no usable Vulkan device (see `whitted devices`)"
+                ))
+            })?;
+            format!("gpu:{}", name.split_whitespace().next().unwrap_or("gpu"))
+        } else {
+            "cpu".into()
+        };
+        out.push(Engine::Whitted { backend: b, label });
+    }
+    if a.vs.is_some() {
+        let ok = std::process::Command::new("povray")
+            .arg("--version")
+            .output()
+            .is_ok();
+        if !ok {
+            bail!(user(anyhow!(
+                "--vs povray: `povray` is not installed or not on PATH (Debian: apt-get install povray)"
+            )));
+        }
+        out.push(Engine::PovRay);
+    }
+    Ok(out)
+}
+
+pub fn run(a: BenchArgs, ui: Ui) -> Result<u8> {
+    let mut outputs = Vec::new();
+    if let Some(p) = &a.csv {
+        outputs.push(Output {
+            flag: "--csv",
+            path: p,
+            extensions: &["csv"],
+            stdout: true,
+        });
+    }
+    if let Some(p) = &a.plot {
+        outputs.push(Output {
+            flag: "--plot",
+            path: p,
+            extensions: &["svg", "png"],
+            stdout: false,
+        });
+    }
+    files::check_outputs(&outputs, &[]).map_err(user)?;
+    let engines = engines(&a)?;
+    let tmp;
+    let work = match &a.keep {
+        Some(d) => {
+            std::fs::create_dir_all(d)
+                .map_err(|e| user(anyhow!("--keep {}: cannot create it: {e}", d.display())))?;
+            d.clone()
+        }
+        None => {
+            tmp = tempfile::Builder::new()
+                .prefix("whitted-bench-")
+                .tempdir()
+                .context("cannot create a temporary directory")?;
+            tmp.path().to_path_buf()
+        }
+    };
+    let mut cases = if a.scaling {
+        scaling_cases(&work)?
+    } else {
+        suite_cases(&a, &work)?
+    };
+    if !a.only.is_empty() {
+        cases.retain(|c| a.only.iter().any(|o| c.name.contains(o.as_str())));
+    }
+    if let Some([w, h]) = a.resolution {
+        cases = cases.into_iter().map(|c| c.resized(w, h)).collect();
+    }
+    if cases.is_empty() {
+        bail!(user(anyhow!(
+            "no case to run (see --suite, --only, --scenes)"
+        )));
+    }
+    let plan = Plan {
+        cases,
+        engines,
+        runs: a.runs as usize,
+        warmup: a.warmup as usize,
+        exe: std::env::current_exe().context("cannot find the whitted executable")?,
+        work,
+        povray_threads: crate::sys::cores(),
+    };
+    if !ui.quiet {
+        eprintln!(
+            "whitted bench: {} cases x {} engines, {} warm-up + {} runs each, on {}",
+            plan.cases.len(),
+            plan.engines.len(),
+            plan.warmup,
+            plan.runs,
+            crate::sys::machine()
+        );
+    }
+    let bar = Bar::new(ui, "benchmarking");
+    let rows = bench::run(&plan, &|d, t| bar.set(d, t));
+    bar.finish();
+    let rows = rows?;
+    print!("{}", bench::table(&rows));
+    if a.scaling {
+        print!("{}", bench::scaling_summary(&rows));
+    }
+    if let Some(p) = &a.csv {
+        files::write_bytes(&Dest::new(p), bench::csv(&rows)?.as_bytes()).map_err(user)?;
+    }
+    if let Some(p) = &a.plot {
+        if a.scaling {
+            for (name, chart) in bench::scaling_charts(&rows) {
+                let path = if name == "render" {
+                    p.clone()
+                } else {
+                    let stem = p
+                        .file_stem()
+                        .map(|s| s.to_string_lossy())
+                        .unwrap_or_default();
+                    let ext = files::extension(p).unwrap_or_default();
+                    p.with_file_name(format!("{stem}-{name}.{ext}"))
+                };
+                crate::plot::draw(&chart, &path)?;
+            }
+        } else {
+            let title = format!("whitted bench on {}", crate::sys::machine());
+            crate::plot::draw(&bench::suite_chart(&rows, &title), p)?;
+        }
+    }
+    Ok(0)
+}

@@ -1,0 +1,227 @@
+//! Options shared by `render` and `validate`, and their parsers.
+
+use crate::gpu::{self, GpuOptions, PipelineCache};
+use crate::pack::{Counting, Preset, Sampling, Settings};
+use clap::Args;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// The image size (`render`, `validate`, `export`).
+#[derive(Args, Clone, Debug)]
+pub struct SizeOpts {
+    /// Image width in pixels (default: the scene's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: the scene's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub height: Option<u32>,
+}
+
+/// How deep the ray tree goes (`render`, `validate`, `export`).
+#[derive(Args, Clone, Debug)]
+pub struct DepthOpts {
+    /// Generations of reflection/refraction (0 = local model only)
+    /// [default: 5; --preset spd: 4].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=crate::constants::MAX_DEPTH_LIMIT as i64))]
+    pub max_depth: Option<u32>,
+    /// Adaptive depth control: a branch stops when its accumulated weight
+    /// (largest channel) falls under this; 0 switches it off
+    /// [default: 1/256 = 0.00390625; --preset spd: 0].
+    #[arg(long, value_parser = parse_weight)]
+    pub min_weight: Option<f32>,
+}
+
+impl DepthOpts {
+    /// The depth and weight asked for, over `base`'s.
+    pub fn resolve(&self, base: &Settings) -> (u32, f32) {
+        (
+            self.max_depth.unwrap_or(base.max_depth),
+            self.min_weight.unwrap_or(base.min_weight),
+        )
+    }
+}
+
+#[derive(Args, Clone, Debug)]
+pub struct RenderOpts {
+    /// A named set of settings (docs/spd.md); options given beside it
+    /// override it.
+    #[arg(long, value_enum)]
+    pub preset: Option<Preset>,
+    #[command(flatten)]
+    pub size: SizeOpts,
+    #[command(flatten)]
+    pub depth: DepthOpts,
+    /// Samples per pixel: stratified, jittered by a per-pixel hash
+    /// (reproducible). 1 = the pixel centre [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub spp: Option<u32>,
+    /// Pixel centres (with --spp jitter), or SPD's (W+1)×(H+1) corner rays
+    /// [default: centers; --preset spd: corners].
+    #[arg(long, value_enum)]
+    pub sampling: Option<Sampling>,
+    /// Override the voxel grid resolution, e.g. 64x64x32.
+    #[arg(long, value_parser = parse_grid, value_name = "NXxNYxNZ")]
+    pub grid: Option<[u32; 3]>,
+    /// Memory the run may use: a size (512M, 4GiB, 1.5G; K/M/G/T are
+    /// powers of 1024, KB/MB/GB/TB of 1000) or a share of physical memory
+    /// (75%). A run whose estimate is over it is refused before anything
+    /// large is allocated (exit 2). Default: 50% of physical memory
+    /// (docs/budget.md).
+    #[arg(long, value_name = "SIZE", value_parser = crate::budget::Budget::parse)]
+    pub memory_limit: Option<crate::budget::Budget>,
+    /// Worker threads for the CPU backend (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+}
+
+impl RenderOpts {
+    /// The preset's settings (or the defaults) with every option given
+    /// over them.
+    pub fn settings(&self) -> Settings {
+        let base = self.preset.map(Preset::settings).unwrap_or_default();
+        let (max_depth, min_weight) = self.depth.resolve(&base);
+        Settings {
+            width: self.size.width.or(base.width),
+            height: self.size.height.or(base.height),
+            max_depth,
+            min_weight,
+            spp: self.spp.unwrap_or(base.spp),
+            sampling: self.sampling.unwrap_or(base.sampling),
+            grid: self.grid.or(base.grid),
+            budget: self.memory_limit.unwrap_or(base.budget),
+        }
+    }
+
+    /// How rays are counted: as the preset says, or as traced.
+    pub fn counting(&self) -> Counting {
+        let c = self.preset.map(Preset::counting).unwrap_or_default();
+        if c == Counting::Spd && self.settings().min_weight > 0.0 {
+            log::warn!(
+                "--preset spd with --min-weight above 0: adaptive cut-off drops rays the SPD \
+                 counts, so the ray statistics are not the SPD's"
+            );
+        }
+        c
+    }
+}
+
+#[derive(Args, Clone, Debug)]
+pub struct GpuArgs {
+    /// Vulkan device index (see `whitted devices`); default: the best one
+    /// (discrete > integrated > virtual > CPU).
+    #[arg(long, value_name = "N")]
+    pub device: Option<usize>,
+    /// Edge of a GPU dispatch tile in lattice samples: one submission per
+    /// tile, so none runs long.
+    #[arg(long, value_name = "N", default_value_t = gpu::DEFAULT_TILE,
+          value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub tile: u32,
+    /// GPU workgroup shape (specialization constants of the shader).
+    #[arg(long, value_name = "WxH", default_value = "8x8", value_parser = parse_workgroup)]
+    pub workgroup: [u32; 2],
+    /// Where compiled GPU pipelines are cached (default: the
+    /// WHITTED_PIPELINE_CACHE variable, else $XDG_CACHE_HOME/whitted or
+    /// ~/.cache/whitted); `off`: no cache. A bad cache never fails a render.
+    #[arg(long, value_name = "DIR|off")]
+    pub pipeline_cache: Option<PathBuf>,
+    /// Longest wait for one GPU tile before the device is treated as hung
+    /// (exit 4, or the CPU mirror with --backend auto) [default: 600].
+    /// Each tile is at most 2^20 eye rays; on a slow device use a smaller
+    /// --tile rather than a longer wait.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub fence_timeout: Option<Duration>,
+}
+
+impl GpuArgs {
+    pub fn options(&self) -> GpuOptions {
+        GpuOptions {
+            device: self.device,
+            real_gpu_only: false,
+            tile: self.tile,
+            workgroup: self.workgroup,
+            staging: false,
+            pipeline_cache: match &self.pipeline_cache {
+                None => PipelineCache::Default,
+                Some(p) if p.as_os_str() == "off" => PipelineCache::Off,
+                Some(p) => PipelineCache::Dir(p.clone()),
+            },
+            fence_timeout: self.fence_timeout,
+            ..Default::default()
+        }
+    }
+}
+
+pub fn parse_workgroup(s: &str) -> Result<[u32; 2], String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let bad = || format!("expected WxH such as 8x8 (each 1 to 1024), got '{s}'");
+    if parts.len() != 2 {
+        return Err(bad());
+    }
+    let mut out = [0u32; 2];
+    for (i, p) in parts.iter().enumerate() {
+        out[i] = p
+            .parse()
+            .ok()
+            .filter(|n| (1..=1024).contains(n))
+            .ok_or_else(bad)?;
+    }
+    Ok(out)
+}
+
+pub fn parse_seconds(s: &str) -> Result<Duration, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("must be a number of seconds, got '{s}'"))?;
+    if !v.is_finite() || v <= 0.0 || v > 1e6 {
+        return Err(format!("must be in (0, 1000000] seconds, got {s}"));
+    }
+    Ok(Duration::from_secs_f64(v))
+}
+
+pub fn parse_weight(s: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("must be a number in [0, 1], got '{s}'"))?;
+    if !v.is_finite() || !(0.0..=1.0).contains(&v) {
+        return Err(format!("must be a number in [0, 1], got {s}"));
+    }
+    Ok(v)
+}
+
+pub fn parse_grid(s: &str) -> Result<[u32; 3], String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let max = crate::constants::GRID_MAX_DIM;
+    if parts.len() != 3 {
+        return Err(format!("expected NXxNYxNZ such as 64x64x32, got '{s}'"));
+    }
+    let mut out = [0u32; 3];
+    for (i, p) in parts.iter().enumerate() {
+        out[i] = p
+            .parse()
+            .ok()
+            .filter(|&n| (1..=max).contains(&n))
+            .ok_or_else(|| format!("'{p}' in '{s}' is not a whole number from 1 to {max}"))?;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parsers_take_good_values_and_refuse_the_rest() {
+        assert_eq!(parse_workgroup("16x4"), Ok([16, 4]));
+        assert!(parse_workgroup("0x4").is_err());
+        assert!(parse_workgroup("8").is_err());
+        assert_eq!(parse_grid("1x2x1023"), Ok([1, 2, 1023]));
+        assert!(parse_grid("1x2x1024").unwrap_err().contains("1 to 1023"));
+        assert!(parse_grid("18446744073709551616x1x1").is_err());
+        assert_eq!(parse_weight("0"), Ok(0.0));
+        assert!(parse_weight("1.5").is_err());
+        assert!(parse_weight("nan").is_err());
+        assert!(parse_weight("x").unwrap_err().contains("'x'"));
+    }
+}

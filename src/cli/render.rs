@@ -1,0 +1,159 @@
+//! `whitted render`: a scene to an image file (or standard output).
+
+use super::options::{GpuArgs, RenderOpts};
+use super::{Bar, Ui};
+use crate::error::user;
+use crate::files::{self, Dest, Output};
+use crate::output::{self, Encoding};
+use crate::run::{self, Backend, RenderOptions};
+use crate::scene;
+use anyhow::Result;
+use clap::Args;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Scene file: native TOML (see docs/scene-format.md) or NFF (.nff).
+    pub scene: PathBuf,
+    /// Output image: .png (8-bit), .exr or .hdr (linear floats); `-` writes
+    /// PNG to standard output. Default: the scene's name with .png, in the
+    /// current directory.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+    /// Where to render: `auto` uses a real GPU (discrete, integrated or
+    /// virtual) when there is one and otherwise the CPU mirror, saying why
+    /// on stderr, and finishes on the CPU mirror if the GPU fails; `gpu`
+    /// uses the chosen Vulkan device, CPU ones (lavapipe) included, and
+    /// fails when there is none (exit 2) or when it fails (exit 4); `cpu`
+    /// the CPU mirror.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub backend: Backend,
+    #[command(flatten)]
+    pub gpu: GpuArgs,
+    /// PNG encoding: sRGB, or the clamped linear values round(255·v).
+    #[arg(long, value_enum, default_value_t = Encoding::Srgb)]
+    pub encoding: Encoding,
+    /// Write ray counts, work counters, timings and grid size as JSON.
+    #[arg(long, value_name = "FILE.json")]
+    pub stats: Option<PathBuf>,
+}
+
+/// The image path `render` writes: `-o`, or the scene's stem with .png.
+pub fn output_path(a: &RenderArgs) -> PathBuf {
+    match &a.output {
+        Some(o) => o.clone(),
+        None => PathBuf::from(format!(
+            "{}.png",
+            a.scene
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("out")
+        )),
+    }
+}
+
+pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
+    let t_start = Instant::now();
+    let out = output_path(&a);
+    let dest = Dest::new(&out);
+    let mut outputs = vec![Output {
+        flag: "-o",
+        path: &out,
+        extensions: &["png", "exr", "hdr"],
+        stdout: true,
+    }];
+    if let Some(s) = &a.stats {
+        outputs.push(Output {
+            flag: "--stats",
+            path: s,
+            extensions: &["json"],
+            stdout: true,
+        });
+    }
+    files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
+    if dest == Dest::Stdout && std::io::stdout().is_terminal() {
+        return Err(user(anyhow::anyhow!(
+            "-o -: standard output is a terminal; redirect it to a file or a program"
+        )));
+    }
+    let scene = scene::load(&a.scene).map_err(user)?;
+    let t_load = t_start.elapsed().as_secs_f64();
+    log::debug!("loaded {} in {t_load:.3} s", a.scene.display());
+    let opts = RenderOptions {
+        settings: a.opts.settings(),
+        backend: a.backend,
+        gpu: a.gpu.options(),
+        threads: a.opts.threads,
+        counting: a.opts.counting(),
+    };
+    let t_pack = Instant::now();
+    let bar = Bar::new(ui, "packing");
+    let packed = run::pack_with_progress(&scene, &opts.settings, opts.counting, &|s, d, t| {
+        bar.pack_stage(s, d, t)
+    });
+    bar.finish();
+    let packed = packed?;
+    drop(scene);
+    let t_build = t_pack.elapsed().as_secs_f64();
+    log::debug!("packed in {t_build:.3} s");
+    let bar = Bar::new(ui, "rendering");
+    let r = run::render_packed(&packed, &opts, &|d, t| bar.set(d, t));
+    bar.finish();
+    let mut r = r?;
+    r.pack_seconds = t_build;
+    let frame = &r.frame;
+    output::write_to(frame, &dest, a.encoding).map_err(user)?;
+    let total = t_start.elapsed().as_secs_f64();
+    if let Some(path) = &a.stats {
+        let json = serde_json::json!({
+            "backend": r.used,
+            "device": r.device,
+            "width": frame.width,
+            "height": frame.height,
+            "rays": frame.stats,
+            "counting": packed.counting(),
+            "work": { "intersection_tests": frame.work.tests, "cells_visited": frame.work.cells },
+            "seconds": {
+                "load": t_load,
+                "build": t_build,
+                "render": frame.seconds,
+                "gpu": frame.device_seconds,
+                "total": total,
+            },
+            "peak_memory_bytes": crate::sys::peak_memory(),
+            "grid": {
+                "cells": packed.grid.cells,
+                "refs": packed.grid.refs,
+                "bytes": packed.grid.bytes,
+                "build_seconds": packed.grid.seconds,
+                "duplicates": packed.grid.duplicates,
+            },
+        });
+        files::write_bytes(
+            &Dest::new(path),
+            serde_json::to_string_pretty(&json)?.as_bytes(),
+        )
+        .map_err(user)?;
+    }
+    if !ui.quiet {
+        eprintln!(
+            "{}: {}x{} on {} in {:.3} s ({:.2} Mrays/s; grid {}x{}x{}, {} refs, built in {:.3} s)",
+            dest.display(),
+            frame.width,
+            frame.height,
+            r.device,
+            frame.seconds,
+            frame.stats.total() as f64 / frame.seconds.max(1e-9) / 1e6,
+            packed.grid.cells[0],
+            packed.grid.cells[1],
+            packed.grid.cells[2],
+            packed.grid.refs,
+            packed.grid.seconds,
+        );
+    }
+    Ok(0)
+}

@@ -1,0 +1,151 @@
+//! `whitted validate`: the same packed scene on the GPU and on the CPU
+//! mirror, compared (docs/gpu.md).
+
+use super::options::{GpuArgs, RenderOpts};
+use super::Ui;
+use crate::error::{user, EXIT_MISMATCH};
+use crate::files::{self, Dest, Output};
+use crate::gpu::Gpu;
+use crate::metrics::{self, Tolerance};
+use crate::run;
+use crate::scene;
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct ValidateArgs {
+    /// Scene file: native TOML (see docs/scene-format.md) or NFF (.nff).
+    pub scene: PathBuf,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+    #[command(flatten)]
+    pub gpu: GpuArgs,
+    /// Write an image of the per-pixel error (PNG): black where the
+    /// backends agree; the per-pixel tolerance is the middle of the colour
+    /// scale, brighter is over it.
+    #[arg(long, value_name = "DIFF.png")]
+    pub diff: Option<PathBuf>,
+    /// Write the comparison as JSON (`-` for standard output).
+    #[arg(long, value_name = "FILE.json")]
+    pub json: Option<PathBuf>,
+}
+
+pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
+    let mut outputs = Vec::new();
+    if let Some(p) = &a.diff {
+        outputs.push(Output {
+            flag: "--diff",
+            path: p,
+            extensions: &["png"],
+            stdout: false,
+        });
+    }
+    if let Some(p) = &a.json {
+        outputs.push(Output {
+            flag: "--json",
+            path: p,
+            extensions: &["json"],
+            stdout: true,
+        });
+    }
+    files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
+    let scene = scene::load(&a.scene).map_err(user)?;
+    let bar = super::Bar::new(ui, "packing");
+    let packed =
+        run::pack_with_progress(&scene, &a.opts.settings(), a.opts.counting(), &|s, d, t| {
+            bar.pack_stage(s, d, t)
+        });
+    bar.finish();
+    let packed = packed?;
+    drop(scene);
+    let gopts = a.gpu.options();
+    let g = Gpu::new(&gopts).map_err(|e| user(anyhow!("validate: {e}")))?;
+    let gpu_frame = g
+        .render(&packed, &gopts, &|_, _| {})
+        .map_err(run::gpu_error)?;
+    let cpu_frame = run::render_cpu(&packed, a.opts.threads, &|_, _| {})?;
+    let tol = Tolerance::default();
+    let c = metrics::compare(&cpu_frame, &gpu_frame, &tol);
+    if let Some(path) = &a.diff {
+        let img = c.diff_image();
+        let mut bytes = Vec::new();
+        img.write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .context("cannot encode the difference image")?;
+        files::write_bytes(&Dest::new(path), &bytes).map_err(user)?;
+    }
+    if let Some(path) = &a.json {
+        let json = serde_json::json!({
+            "scene": a.scene,
+            "device": g.info().name,
+            "comparison": c,
+            "passed": c.passed(),
+            "seconds": { "cpu": cpu_frame.seconds, "gpu_wall": gpu_frame.seconds, "gpu": gpu_frame.device_seconds },
+        });
+        files::write_bytes(
+            &Dest::new(path),
+            serde_json::to_string_pretty(&json)?.as_bytes(),
+        )
+        .map_err(user)?;
+    }
+    // With --json -, stdout carries the JSON alone.
+    let to_stdout = a.json.as_deref() != Some(std::path::Path::new("-"));
+    if !ui.quiet && to_stdout {
+        println!(
+            "{}: {}x{}, CPU mirror vs {}",
+            a.scene.display(),
+            c.width,
+            c.height,
+            g.info().name
+        );
+        println!("  max abs error    {:.3e}", c.max_abs);
+        println!("  mean abs error   {:.3e}", c.mean_abs);
+        println!("  RMSE             {:.3e}", c.rmse);
+        println!("  PSNR             {:.1} dB", c.psnr);
+        println!(
+            "  mean FLIP        {:.5} (8-bit sRGB; limit {})",
+            c.mean_flip, tol.mean_flip
+        );
+        println!(
+            "  pixels over {:e} {} of {} ({:.3}%; limit {:.3}%)",
+            tol.pixel,
+            c.pixels_over,
+            c.width as u64 * c.height as u64,
+            c.fraction_over * 100.0,
+            tol.fraction_over * 100.0
+        );
+        println!("  rays       {:>12} {:>12} {:>8}", "cpu", "gpu", "diff");
+        for r in &c.rays {
+            println!(
+                "  {:<10} {:>12} {:>12} {:>+8}",
+                r.kind,
+                r.reference,
+                r.test,
+                r.diff()
+            );
+        }
+        println!(
+            "  time       cpu {:.3} s, gpu {:.3} s{}",
+            cpu_frame.seconds,
+            gpu_frame.seconds,
+            gpu_frame
+                .device_seconds
+                .map(|s| format!(" (device {s:.3} s)"))
+                .unwrap_or_default()
+        );
+    }
+    let verdict = if c.passed() {
+        "PASS: the GPU matches the CPU mirror within tolerance".to_string()
+    } else {
+        format!("FAIL: {}", c.failures.join("; "))
+    };
+    if to_stdout {
+        println!("{verdict}");
+    } else {
+        eprintln!("{verdict}");
+    }
+    Ok(if c.passed() { 0 } else { EXIT_MISMATCH })
+}

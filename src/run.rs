@@ -1,0 +1,261 @@
+//! The library's entry for a render, which every command and the tests
+//! call: pack the scene, choose a backend, render, and on `auto` fall back
+//! to the CPU mirror when the GPU cannot be had or fails. The CLI
+//! (`src/cli/`) only adds argument parsing, output checks and reports.
+//!
+//! ```no_run
+//! # fn main() -> anyhow::Result<()> {
+//! let scene = whitted::scene::load(std::path::Path::new("scenes/showcase.toml"))?;
+//! let r = whitted::render(&scene, &whitted::RenderOptions::default())?;
+//! whitted::output::write(&r.frame, std::path::Path::new("out.png"), Default::default())?;
+//! # Ok(()) }
+//! ```
+
+use crate::cpu::{self, Frame};
+use crate::error::{device, user};
+use crate::gpu::{self, Gpu, GpuError, GpuOptions};
+use crate::pack::{self, Counting, Packed, Settings};
+use crate::scene::Scene;
+use anyhow::{anyhow, Context, Result};
+use std::time::Instant;
+
+/// Where to render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    /// A real GPU when there is one, otherwise the CPU mirror.
+    #[default]
+    Auto,
+    /// The CPU mirror (all cores).
+    Cpu,
+    /// The Vulkan compute shader on the chosen device (lavapipe included).
+    Gpu,
+}
+
+/// Everything a render needs besides the scene.
+#[derive(Clone, Debug, Default)]
+pub struct RenderOptions {
+    pub settings: Settings,
+    pub backend: Backend,
+    pub gpu: GpuOptions,
+    /// Worker threads for the CPU mirror (None: all cores).
+    pub threads: Option<u32>,
+    /// How rays are counted (`--preset spd` counts as the SPD does).
+    pub counting: Counting,
+}
+
+/// Which backend rendered a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Used {
+    Cpu,
+    Gpu,
+}
+
+impl Used {
+    pub fn name(self) -> &'static str {
+        match self {
+            Used::Cpu => "cpu",
+            Used::Gpu => "gpu",
+        }
+    }
+}
+
+/// A rendered frame and where and how it was made.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    pub frame: Frame,
+    pub used: Used,
+    /// The device's name ("CPU mirror" for the CPU).
+    pub device: String,
+    /// Seconds spent packing (grid build included).
+    pub pack_seconds: f64,
+    pub grid: pack::GridInfo,
+}
+
+/// A progress callback: (done, total) units of work.
+pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);
+
+/// Packs `scene` for `settings`, counting rays as `counting` says;
+/// problems with the scene or the settings, and a run over the memory
+/// budget, are the user's (exit 2).
+pub fn pack(scene: &Scene, settings: &Settings, counting: Counting) -> Result<Packed> {
+    pack_with_progress(scene, settings, counting, &|_, _, _| {})
+}
+
+/// [`pack`] reporting each stage of the grid build (`pack::Stage`).
+pub fn pack_with_progress(
+    scene: &Scene,
+    settings: &Settings,
+    counting: Counting,
+    progress: pack::Progress,
+) -> Result<Packed> {
+    let mut p = pack::pack_with_progress(scene, settings, progress).map_err(user)?;
+    p.set_counting(counting);
+    Ok(p)
+}
+
+/// Renders `scene`: packs it, then [`render_packed`].
+pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
+    render_with_progress(scene, opts, &|_, _| {})
+}
+
+/// [`render`] reporting progress.
+pub fn render_with_progress(
+    scene: &Scene,
+    opts: &RenderOptions,
+    progress: Progress,
+) -> Result<Rendered> {
+    let t0 = Instant::now();
+    let packed = pack(scene, &opts.settings, opts.counting)?;
+    let pack_seconds = t0.elapsed().as_secs_f64();
+    let mut r = render_packed(&packed, opts, progress)?;
+    r.pack_seconds = pack_seconds;
+    Ok(r)
+}
+
+/// Renders packed data on the backend `opts` asks for. `auto` renders on a
+/// real GPU when there is one and on the CPU mirror otherwise, saying why
+/// (log level info); when the GPU fails during the render, `auto` finishes
+/// on the CPU mirror (log level warn) and `gpu` fails with exit code 4.
+pub fn render_packed(
+    packed: &Packed,
+    opts: &RenderOptions,
+    progress: Progress,
+) -> Result<Rendered> {
+    let done = |frame: Frame, used: Used, device: String| Rendered {
+        frame,
+        used,
+        device,
+        pack_seconds: 0.0,
+        grid: packed.grid.clone(),
+    };
+    match choose(opts)? {
+        Chosen::Gpu(g) => match g.render(packed, &opts.gpu, progress) {
+            Ok(frame) => Ok(done(frame, Used::Gpu, g.info().name.clone())),
+            Err(e) if opts.backend == Backend::Auto && is_device_fault(&e) => {
+                log::warn!("{e}; finishing the render on the CPU mirror");
+                drop(g);
+                let frame = render_cpu(packed, opts.threads, progress)?;
+                Ok(done(frame, Used::Cpu, "CPU mirror".into()))
+            }
+            Err(e) => Err(gpu_error(e)),
+        },
+        Chosen::Cpu(why) => {
+            if let Some(why) = why {
+                log::info!("rendering on the CPU mirror: {why}");
+            }
+            let frame = render_cpu(packed, opts.threads, progress)?;
+            Ok(done(frame, Used::Cpu, "CPU mirror".into()))
+        }
+    }
+}
+
+/// A failure of the device itself (not of the scene or the options): the
+/// device's own faults (`GpuError::is_device_fault`: lost, out of memory,
+/// timed out, kernel refused) and any other failed Vulkan call.
+pub fn is_device_fault(e: &GpuError) -> bool {
+    e.is_device_fault() || matches!(e, GpuError::Vulkan { .. } | GpuError::Memory { .. })
+}
+
+/// A GPU error with its exit class: the user's (2), the device's (4) or
+/// internal (3).
+pub fn gpu_error(e: GpuError) -> anyhow::Error {
+    if e.is_user_error() {
+        user(e)
+    } else if is_device_fault(&e) {
+        device(e)
+    } else {
+        anyhow!(e)
+    }
+}
+
+/// Renders on the CPU mirror with `threads` workers (None: all cores).
+pub fn render_cpu(packed: &Packed, threads: Option<u32>, progress: Progress) -> Result<Frame> {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        b = b.num_threads(n as usize);
+    }
+    let pool = b.build().context("cannot start worker threads")?;
+    Ok(pool.install(|| cpu::render(packed, progress)))
+}
+
+enum Chosen {
+    Gpu(Gpu),
+    /// The CPU mirror, and why when `auto` passed over a Vulkan device.
+    Cpu(Option<String>),
+}
+
+/// `auto`: a real GPU, or `--device N` of any kind; otherwise the CPU
+/// mirror with the reason. `gpu`: the chosen device or an error (exit 2).
+fn choose(opts: &RenderOptions) -> Result<Chosen> {
+    let g = &opts.gpu;
+    match opts.backend {
+        Backend::Cpu => Ok(Chosen::Cpu(None)),
+        Backend::Gpu => Ok(Chosen::Gpu(
+            Gpu::new(g).map_err(|e| user(anyhow!("--backend gpu: {e}")))?,
+        )),
+        Backend::Auto => {
+            let devices = match gpu::devices() {
+                Ok(d) => d,
+                Err(e) => return Ok(Chosen::Cpu(Some(e.to_string()))),
+            };
+            let pick = match g.device {
+                Some(i) => gpu::choose(&devices, Some(i), false),
+                None => gpu::choose(&devices, None, true),
+            };
+            match pick {
+                Ok(i) => {
+                    let o = GpuOptions {
+                        device: Some(i),
+                        ..g.clone()
+                    };
+                    match Gpu::new(&o) {
+                        Ok(gpu) => Ok(Chosen::Gpu(gpu)),
+                        Err(e) if g.device.is_some() => Err(gpu_error(e)),
+                        Err(e) => Ok(Chosen::Cpu(Some(format!(
+                            "{} could not be opened ({e})",
+                            devices[i].name
+                        )))),
+                    }
+                }
+                Err(e @ GpuError::BadIndex { .. }) | Err(e @ GpuError::Unusable(_))
+                    if g.device.is_some() =>
+                {
+                    Err(gpu_error(e))
+                }
+                Err(_) => Ok(Chosen::Cpu(Some(auto_reason(&devices)))),
+            }
+        }
+    }
+}
+
+/// Why `auto` passes over every Vulkan device.
+pub fn auto_reason(devices: &[gpu::DeviceInfo]) -> String {
+    if devices.is_empty() {
+        return "no Vulkan device".into();
+    }
+    let cpu: Vec<&gpu::DeviceInfo> = devices
+        .iter()
+        .filter(|d| d.kind == gpu::DeviceKind::Cpu)
+        .collect();
+    if let Some(d) = cpu.first() {
+        return format!(
+            "the only Vulkan device is {} (a CPU device: lavapipe is for validation, \
+             5 to 10x slower than the mirror here, see BENCHMARKS.md); --backend gpu uses it anyway",
+            d.name
+        );
+    }
+    format!(
+        "no usable GPU ({})",
+        devices
+            .iter()
+            .map(|d| format!(
+                "{}: {}",
+                d.name,
+                d.unusable.as_deref().unwrap_or("not a GPU")
+            ))
+            .collect::<Vec<_>>()
+            .join("; ")
+    )
+}

@@ -1,0 +1,132 @@
+//! `whitted bench` end to end on a tiny suite: every case and engine gets a
+//! row with the counts `whitted render --stats` reports, the CSV and the
+//! plots are written, and --vs povray times POV-Ray beside us when it is
+//! installed (required when WHITTED_REQUIRE_POVRAY=1).
+
+use assert_cmd::Command;
+
+fn whitted() -> Command {
+    Command::cargo_bin("whitted").unwrap()
+}
+
+fn require_povray() -> bool {
+    std::env::var("WHITTED_REQUIRE_POVRAY").is_ok_and(|v| v == "1")
+}
+
+fn have_povray() -> bool {
+    std::process::Command::new("povray")
+        .arg("--version")
+        .output()
+        .is_ok()
+}
+
+#[test]
+fn bench_writes_a_row_per_case_and_engine() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("b.csv");
+    let plot = d.path().join("b.svg");
+    let mut args = vec![
+        "-q",
+        "bench",
+        "--suite",
+        "examples,spheres",
+        "--runs",
+        "2",
+        "--warmup",
+        "0",
+        "--resolution",
+        "24x16",
+        "--backends",
+        "cpu",
+    ];
+    let vs = have_povray();
+    assert!(vs || !require_povray(), "povray is not installed");
+    if vs {
+        args.extend(["--vs", "povray"]);
+    } else {
+        eprintln!("note: povray is not installed: --vs povray is not tested");
+    }
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = whitted()
+        .current_dir(root)
+        .args(&args)
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--plot")
+        .arg(&plot)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut r = csv::Reader::from_reader(text.as_bytes());
+    let header = r.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    let examples = std::fs::read_dir(format!("{root}/scenes"))
+        .unwrap()
+        .filter(|e| {
+            let p = e.as_ref().unwrap().path();
+            matches!(p.extension().and_then(|x| x.to_str()), Some("toml" | "nff"))
+        })
+        .count();
+    let engines = if vs { 2 } else { 1 };
+    assert_eq!(rows.len(), (examples + 1) * engines);
+    for row in rows.iter().filter(|x| &x[col("engine")] == "cpu") {
+        assert_eq!(&row[col("runs")], "2");
+        assert_eq!(&row[col("width")], "24");
+        // 24x16 eye rays at least; every ray counted
+        let rays: u64 = row[col("rays")].parse().unwrap();
+        assert!(rays >= 24 * 16, "{row:?}");
+        let render: f64 = row[col("render_median_s")].parse().unwrap();
+        let mrays: f64 = row[col("mrays_per_s")].parse().unwrap();
+        assert!((mrays - rays as f64 / render / 1e6).abs() <= 1e-6 * mrays.max(1.0));
+        let peak: u64 = row[col("peak_bytes")].parse().unwrap();
+        assert!(peak > 1 << 20);
+        let (lo, med, hi): (f64, f64, f64) = (
+            row[col("wall_min_s")].parse().unwrap(),
+            row[col("wall_median_s")].parse().unwrap(),
+            row[col("wall_max_s")].parse().unwrap(),
+        );
+        assert!(lo <= med && med <= hi && lo > 0.0);
+        if vs {
+            let ratio: f64 = row[col("povray_over_this")].parse().unwrap();
+            assert!(ratio > 0.0);
+            let psnr: f64 = row[col("psnr_vs_povray_db")].parse().unwrap();
+            assert!(psnr > 10.0, "{row:?}");
+        }
+    }
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.contains("spheres-20k") && svg.contains("median wall time"));
+}
+
+#[test]
+fn bench_refuses_bad_requests_before_work() {
+    let d = tempfile::tempdir().unwrap();
+    for (args, fragment) in [
+        (vec!["bench", "--csv", "x.txt"], "writes .csv"),
+        (vec!["bench", "--plot", "x.pdf"], "writes .svg or .png"),
+        (vec!["bench", "--only", "nothing-matches"], "no case to run"),
+        (vec!["bench", "--runs", "0"], "0"),
+    ] {
+        let out = whitted()
+            .current_dir(d.path())
+            .args(&args)
+            .args([
+                "--suite",
+                "spheres",
+                "--backends",
+                "cpu",
+                "--resolution",
+                "8x8",
+            ])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(fragment), "{args:?}: {err}");
+    }
+}
