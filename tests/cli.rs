@@ -306,16 +306,28 @@ fn run_render(dir: &Path, scene: &Path, args: &[&str]) -> (i32, String, Option<s
 }
 
 /// Issue 7's piles of identical spheres (which used to run out of memory,
-/// panic or file for minutes) render, on one cell; tiny radii (whose
-/// volume underflowed into a 1023³ grid) render on a small grid.
+/// panic or file for minutes) render, on one cell; small radii render on a
+/// small grid. Radii f32 cannot hold (whose volume underflowed into a
+/// 1023³ grid) are refused when the scene is read, at the value
+/// (`docs/scene-format.md`, "f32 limits").
 #[test]
 fn degenerate_extents_render_on_a_small_grid() {
     let dir = tempfile::tempdir().unwrap();
+    for (name, body, col) in [
+        ("tiny-1e-120.nff", "s 0 0 0 1e-120\n", 9),
+        ("tiny-5e-324.nff", "s 0 0 0 5e-324\n", 9),
+        ("point-1e-300.nff", "s 0.5 0.5 0.5 1e-300\n", 15),
+    ] {
+        let scene = write(dir.path(), name, &format!("{NFF_VIEW}{body}"));
+        let (code, err, _) = run_render(dir.path(), &scene, &[]);
+        assert_eq!(code, 2, "{name}: {err}");
+        let at = format!("{name}:11:{col}: radius must be at least 1e-18");
+        assert!(err.contains(&at), "{name}: {err}");
+    }
     for (name, body, cells_max) in [
         ("same-100k.nff", "s 0 0 0 1\n".repeat(100_000), 1),
-        ("tiny-1e-120.nff", "s 0 0 0 1e-120\n".into(), 3000),
-        ("tiny-5e-324.nff", "s 0 0 0 5e-324\n".into(), 3000),
-        ("point-10k.nff", "s 0.5 0.5 0.5 1e-300\n".repeat(10_000), 1),
+        ("tiny-1e-5.nff", "s 0 0 0 1e-5\n".into(), 3000),
+        ("point-10k.nff", "s 0.5 0.5 0.5 1e-5\n".repeat(10_000), 1),
     ] {
         let scene = write(dir.path(), name, &format!("{NFF_VIEW}{body}"));
         let (code, err, j) = run_render(dir.path(), &scene, &[]);
