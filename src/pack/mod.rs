@@ -817,10 +817,28 @@ pub fn pack_with_progress(
     let up = right.cross(forward);
     let half_h = (cam.fov.to_radians() * 0.5).tan();
     let half_w = half_h * width as f64 / height as f64;
+    // The surface offset's scale: the scene's size, or how far from the
+    // camera (the origin of the packed coordinates) its farthest point
+    // lies, whichever is larger, since f32 hit points are as precise as
+    // their distance from the origin allows. Not where the camera looks:
+    // a far `at` behind a small scene would push every secondary ray off
+    // its surface.
     let scale = if finite.lo[0] > finite.hi[0] {
         (cam.at - cam.from).length()
     } else {
-        finite.diagonal().max((cam.at - cam.from).length())
+        let far = (0..8)
+            .map(|c| {
+                let pick = |i: usize| {
+                    if c >> i & 1 == 0 {
+                        finite.lo[i]
+                    } else {
+                        finite.hi[i]
+                    }
+                };
+                DVec3::new(pick(0), pick(1), pick(2)).length()
+            })
+            .fold(0.0f64, f64::max);
+        finite.diagonal().max(far)
     };
     let (nx, ny) = crate::trace::sample::strata(settings.spp);
     let sampling = match settings.sampling {
