@@ -417,3 +417,54 @@ fn oversized_images_and_grids_are_refused_by_estimate() {
         assert_eq!(out.status.code(), Some(2), "--memory-limit {bad}");
     }
 }
+
+/// The README's command list names every option each command's --help
+/// lists (so neither drifts from the other).
+#[test]
+fn readme_lists_every_option_of_every_command() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let start = readme
+        .find("## The command line")
+        .expect("README has the command line section");
+    let section = &readme[start..];
+    let skip = ["--help", "--version", "--verbose", "--quiet"];
+    for cmd in [
+        "render", "validate", "devices", "generate", "export", "bench",
+    ] {
+        let a = whitted().args([cmd, "--help"]).assert().success();
+        let help = String::from_utf8_lossy(&a.get_output().stdout).to_string();
+        let mut seen = 0;
+        for line in help.lines().map(str::trim_start) {
+            // "-o, --output <OUTPUT>  ..." or "--width <WIDTH>  ..."
+            let (short, rest) = match line.strip_prefix('-') {
+                Some(r) if !r.starts_with('-') && r.len() > 3 && &r[1..3] == ", " => {
+                    (Some(format!("-{}", &r[..1])), &r[3..])
+                }
+                _ => (None, line),
+            };
+            let Some(long) = rest.strip_prefix("--") else {
+                continue;
+            };
+            let long = format!(
+                "--{}",
+                long.split(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                    .next()
+                    .unwrap()
+            );
+            if skip.contains(&long.as_str()) {
+                continue;
+            }
+            seen += 1;
+            let listed = section.contains(&long)
+                || short
+                    .as_ref()
+                    .is_some_and(|s| section.contains(&format!("{s} ")));
+            assert!(listed, "README's command list lacks `{cmd} {long}`");
+        }
+        assert!(
+            seen > 0 || cmd == "devices",
+            "{cmd}: no option read from --help"
+        );
+    }
+}
