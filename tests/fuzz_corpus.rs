@@ -92,3 +92,21 @@ fn regressions_replay() {
         replay(&root().join("tests/fuzz_regressions").join(name), target);
     }
 }
+
+/// The outcome of the finding `tests/fuzz_regressions/TARGET/NAME`.
+fn finding(target: &str, name: &str) -> Outcome {
+    let f = TARGETS.iter().find(|t| t.0 == target).unwrap().1;
+    let p = root().join("tests/fuzz_regressions").join(target).join(name);
+    f(&std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
+}
+
+/// toml: a control character in a comment made the toml crate's error
+/// message empty (`x.toml:1:23: `).
+#[test]
+fn control_character_in_a_toml_comment() {
+    let o = finding("toml", "control-char-in-comment.toml");
+    assert_eq!(
+        o.message(),
+        Some("x.toml:1:23: control character U+0017 is not allowed in TOML text (only tab is)")
+    );
+}

@@ -705,9 +705,21 @@ struct MeshProgress<'a> {
 
 /// toml's message, made clearer where it is terse: an integer beyond i64
 /// or a float beyond f64 is out of range (`value` is the text it points
-/// at), and `i64`, `f64` are named as what they mean.
+/// at), and `i64`, `f64` are named as what they mean. For some
+/// characters (a control character in a comment) toml gives no message at
+/// all: the character at `value` is named.
 fn toml_message(msg: &str, value: &str) -> String {
     let msg = msg.trim_end();
+    if msg.is_empty() {
+        return match value.chars().next() {
+            Some(c) if c.is_control() => format!(
+                "control character U+{:04X} is not allowed in TOML text (only tab is)",
+                c as u32
+            ),
+            Some(c) => format!("unexpected character `{c}`"),
+            None => "unexpected end of the text".into(),
+        };
+    }
     if msg.starts_with("number too large to fit in target type")
         || msg.starts_with("number too small to fit in target type")
     {
