@@ -344,8 +344,13 @@ impl Out {
         });
     }
 
-    /// `lib_output_polypatch` of a triangle: vertices with normals.
+    /// `lib_output_polypatch` of a triangle: vertices with normals. A
+    /// triangle of zero area (by the readers' test) is left out: the NFF
+    /// reader would refuse the file (four of the teapot's at size 1).
     pub(super) fn polypatch(&mut self, vs: &[V3; 3], ns: &[V3; 3]) {
+        if crate::scene::triangle_is_degenerate(&vs.map(dv)) {
+            return;
+        }
         self.push(Shape::Triangle {
             vertices: vs.map(dv),
             normals: Some(Box::new(ns.map(dv))),
