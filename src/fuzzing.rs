@@ -22,7 +22,7 @@
 
 use crate::budget::Budget;
 use crate::pack::{self as packing, Sampling, Settings};
-use crate::scene::{self, Scene, Shape};
+use crate::scene::{self, Files, Scene, Shape};
 use arbitrary::{Arbitrary, Unstructured};
 use glam::DVec3;
 use std::fmt::Write;
@@ -69,7 +69,8 @@ impl Outcome {
     }
 }
 
-/// Fuzz target `toml`: the bytes as a native TOML scene named `x.toml`.
+/// Fuzz target `toml`: the bytes as a native TOML scene named `x.toml`;
+/// every `.obj` file it names reads as [`OCTAHEDRON`] (from memory).
 pub fn toml(data: &[u8]) -> Outcome {
     read_text(data, Path::new("x.toml"))
 }
@@ -79,10 +80,87 @@ pub fn nff(data: &[u8]) -> Outcome {
     read_text(data, Path::new("x.nff"))
 }
 
-/// Fuzz target `obj`: the bytes as a Wavefront `.obj` file.
+/// The `.obj` file every mesh `file` of the `toml` target reads as.
+pub const OCTAHEDRON: &str = "\
+v 1 0 0
+v -1 0 0
+v 0 1 0
+v 0 -1 0
+v 0 0 1
+v 0 0 -1
+f 1 3 5
+f 3 2 5
+f 2 4 5
+f 4 1 5
+f 3 1 6
+f 2 3 6
+f 4 2 6
+f 1 4 6
+";
+
+/// The TOML scene round the `obj` target's mesh (`m.obj`, flat).
+pub const OBJ_SCENE: &str = "\
+[camera]
+from = [3, -10, 5]
+at = [0, 0, 0]
+[[light]]
+position = [5, -5, 10]
+[[object]]
+type = \"mesh\"
+file = \"m.obj\"
+";
+
+/// Fuzz target `obj`: the bytes as the Wavefront `.obj` file of a mesh
+/// in a TOML scene ([`OBJ_SCENE`]), read from memory through the TOML
+/// reader's own mesh path; `smooth = true` when the input's length is odd.
+/// A refusal must name the `.obj` file and a line within it.
 pub fn obj(data: &[u8]) -> Outcome {
-    let _ = data;
-    Outcome::Refused("x.obj: the OBJ target waits for the in-memory reader".into())
+    let smooth = data.len() % 2 == 1;
+    let text = format!("{OBJ_SCENE}smooth = {smooth}\n");
+    let path = Path::new("x.toml");
+    match scene::parse_in(&OneFile(data), &text, path, &|_, _| {}) {
+        Err(e) => {
+            let m = e.to_string();
+            let o = refused(&m, path, &text);
+            let (_, rest) = m
+                .split_once(" m.obj")
+                .unwrap_or_else(|| panic!("the error does not name m.obj: {m}"));
+            // `m.obj:LINE: ...`, `m.obj:LINE:COL: ...` or `m.obj: ...`.
+            let digits: String = rest
+                .strip_prefix(':')
+                .unwrap_or("")
+                .chars()
+                .take_while(|c| c.is_ascii_digit())
+                .collect();
+            if !digits.is_empty() {
+                let line: usize = digits
+                    .parse()
+                    .unwrap_or_else(|_| panic!("a line number beyond usize: {m}"));
+                let lines = data.split(|&b| b == b'\n').count();
+                assert!(
+                    (1..=lines).contains(&line),
+                    "line {line} is outside the .obj text ({lines} lines): {m}"
+                );
+            }
+            o
+        }
+        Ok(s) => {
+            check_scene(&s);
+            render_small(&s, &small_settings())
+        }
+    }
+}
+
+/// Files in memory: every path reads as the same bytes.
+struct OneFile<'a>(&'a [u8]);
+
+impl Files for OneFile<'_> {
+    fn read(&self, _: &Path) -> std::io::Result<Vec<u8>> {
+        Ok(self.0.to_vec())
+    }
+    fn size(&self, _: &Path) -> Option<u64> {
+        Some(self.0.len() as u64)
+    }
 }
 
 /// Fuzz target `pack`: the bytes build a [`SceneSpec`] (the `arbitrary`
@@ -109,7 +187,7 @@ pub fn pack_toml(data: &[u8]) -> Option<String> {
 pub fn pack_spec(spec: &SceneSpec) -> Outcome {
     let text = spec.to_toml();
     let path = Path::new("fuzz.toml");
-    match scene::parse_str(&text, path) {
+    match scene::parse_in(&OneFile(OCTAHEDRON.as_bytes()), &text, path, &|_, _| {}) {
         Err(e) => refused(&e.to_string(), path, &text),
         Ok(s) => {
             check_scene(&s);
@@ -118,11 +196,24 @@ pub fn pack_spec(spec: &SceneSpec) -> Outcome {
     }
 }
 
+/// Reads `data` as the scene file `path`, as `scene::load` does (not
+/// UTF-8 is an error at the bad byte), with [`OCTAHEDRON`] for every
+/// `.obj` file it names.
 fn read_text(data: &[u8], path: &Path) -> Outcome {
-    let Ok(text) = std::str::from_utf8(data) else {
-        return Outcome::Refused(format!("{}: not UTF-8", path.display()));
+    let text = match scene::text_from_bytes(data.to_vec()) {
+        Ok(t) => t,
+        Err(e) => {
+            let m = e.into_scene_error(path).to_string();
+            // The valid text before the bad byte holds its line.
+            let valid = match std::str::from_utf8(data) {
+                Ok(t) => t,
+                Err(u) => std::str::from_utf8(&data[..u.valid_up_to()]).unwrap_or(""),
+            };
+            return refused(&m, path, valid);
+        }
     };
-    match scene::parse_str(text, path) {
+    let text = text.as_str();
+    match scene::parse_in(&OneFile(OCTAHEDRON.as_bytes()), text, path, &|_, _| {}) {
         Err(e) => refused(&e.to_string(), path, text),
         Ok(s) => {
             check_scene(&s);
@@ -168,9 +259,17 @@ pub fn check_scene(s: &Scene) {
     fin(c.at, "camera.at");
     fin(c.up, "camera.up");
     assert!(c.at != c.from, "camera at == from");
-    assert!(c.up.cross(c.at - c.from).length() > 0.0, "camera up parallel");
+    assert!(
+        c.up.cross(c.at - c.from).length() > 0.0,
+        "camera up parallel"
+    );
     assert!(c.fov > 0.0 && c.fov < 180.0, "fov {}", c.fov);
-    assert!(c.width >= 1 && c.height >= 1, "image {}x{}", c.width, c.height);
+    assert!(
+        c.width >= 1 && c.height >= 1,
+        "image {}x{}",
+        c.width,
+        c.height
+    );
     fin(s.background, "background");
     fin(s.ambient, "ambient");
     for l in &s.lights {
@@ -204,7 +303,11 @@ pub fn check_scene(s: &Scene) {
                 vec![*point, *normal]
             }
             Shape::Polygon { vertices } => {
-                assert!(vertices.len() >= 3, "object {i}: polygon of {}", vertices.len());
+                assert!(
+                    vertices.len() >= 3,
+                    "object {i}: polygon of {}",
+                    vertices.len()
+                );
                 vertices.clone()
             }
             Shape::Triangle { vertices, normals } => {
@@ -274,7 +377,12 @@ fn small_settings() -> Settings {
 fn render_small(s: &Scene, settings: &Settings) -> Outcome {
     let settings = Settings {
         width: Some(settings.width.unwrap_or(s.camera.width).clamp(1, MAX_SIDE)),
-        height: Some(settings.height.unwrap_or(s.camera.height).clamp(1, MAX_SIDE)),
+        height: Some(
+            settings
+                .height
+                .unwrap_or(s.camera.height)
+                .clamp(1, MAX_SIDE),
+        ),
         max_depth: settings.max_depth.min(MAX_DEPTH),
         budget: Budget::bytes(MEMORY_LIMIT),
         ..settings.clone()
@@ -654,7 +762,11 @@ fn write_shape(shape: &ShapeSpec, line: &mut dyn FnMut(String)) {
                 points(&mut coefficients.iter().map(|k| num(k.value())))
             ));
             if let Some((lo, hi)) = clip {
-                line(format!("clip = {{ min = {}, max = {} }}", vec3(lo), vec3(hi)));
+                line(format!(
+                    "clip = {{ min = {}, max = {} }}",
+                    vec3(lo),
+                    vec3(hi)
+                ));
             }
         }
         ShapeSpec::Cone {
@@ -843,7 +955,13 @@ mod tests {
 
     #[test]
     fn the_targets_take_any_bytes() {
-        for data in [&b""[..], b"\xff\xfe", b"[camera", b"v\nfrom 0 0 0", b"\0\0\0\0"] {
+        for data in [
+            &b""[..],
+            b"\xff\xfe",
+            b"[camera",
+            b"v\nfrom 0 0 0",
+            b"\0\0\0\0",
+        ] {
             for f in [toml, nff, pack] {
                 let _ = f(data);
             }

@@ -96,7 +96,10 @@ fn regressions_replay() {
 /// The outcome of the finding `tests/fuzz_regressions/TARGET/NAME`.
 fn finding(target: &str, name: &str) -> Outcome {
     let f = TARGETS.iter().find(|t| t.0 == target).unwrap().1;
-    let p = root().join("tests/fuzz_regressions").join(target).join(name);
+    let p = root()
+        .join("tests/fuzz_regressions")
+        .join(target)
+        .join(name);
     f(&std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
 }
 

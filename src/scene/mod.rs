@@ -15,6 +15,9 @@ mod toml_format;
 mod validate;
 
 pub use error::SceneError;
+/// The readers' test for a zero-area triangle (the generators leave such
+/// triangles out, so that what they write reads back).
+pub(crate) use validate::triangle_is_degenerate;
 /// The numeric limits of scene values (`docs/scene-format.md`, "Valid
 /// values" and "f32 limits").
 pub use validate::{MAX_EXPONENT, MAX_FACTOR, MAX_MAGNITUDE, MIN_MAGNITUDE, MIN_SIZE_REL};
@@ -178,13 +181,45 @@ fn parse_with_progress(
     path: &Path,
     progress: &dyn Fn(u64, u64),
 ) -> Result<Scene, SceneError> {
+    parse_in(&Disk, text, path, progress)
+}
+
+/// [`parse_str`] with the `.obj` files a TOML scene names read from
+/// `files`.
+pub(crate) fn parse_in(
+    files: &dyn Files,
+    text: &str,
+    path: &Path,
+    progress: &dyn Fn(u64, u64),
+) -> Result<Scene, SceneError> {
     let is_nff = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("nff"));
     if is_nff {
         nff::parse(text, path, progress)
     } else {
-        toml_format::parse(text, path, progress)
+        toml_format::parse(text, path, progress, files)
+    }
+}
+
+/// Where the readers get the files a scene names: the file system
+/// ([`Disk`]), or memory (the fuzz targets, `crate::fuzzing`).
+pub(crate) trait Files {
+    /// The whole file.
+    fn read(&self, path: &Path) -> std::io::Result<Vec<u8>>;
+    /// Its size in bytes, if known (for progress).
+    fn size(&self, path: &Path) -> Option<u64>;
+}
+
+/// The file system.
+pub(crate) struct Disk;
+
+impl Files for Disk {
+    fn read(&self, path: &Path) -> std::io::Result<Vec<u8>> {
+        std::fs::read(path)
+    }
+    fn size(&self, path: &Path) -> Option<u64> {
+        std::fs::metadata(path).ok().map(|m| m.len())
     }
 }
 
@@ -215,7 +250,7 @@ pub(crate) enum ReadError {
 
 impl ReadError {
     /// As an error in the scene file `path`.
-    fn into_scene_error(self, path: &Path) -> SceneError {
+    pub(crate) fn into_scene_error(self, path: &Path) -> SceneError {
         match self {
             ReadError::Io(e) => SceneError::io(path, &e),
             ReadError::Utf8 { line, column, byte } => {
@@ -231,7 +266,16 @@ pub(crate) fn utf8_message(byte: u8) -> String {
 
 /// Reads a whole text file; invalid UTF-8 is reported at its position.
 pub(crate) fn read_text(path: &Path) -> Result<String, ReadError> {
-    let bytes = std::fs::read(path).map_err(ReadError::Io)?;
+    read_text_in(&Disk, path)
+}
+
+/// [`read_text`] from `files`.
+pub(crate) fn read_text_in(files: &dyn Files, path: &Path) -> Result<String, ReadError> {
+    text_from_bytes(files.read(path).map_err(ReadError::Io)?)
+}
+
+/// The bytes as text; invalid UTF-8 is reported at its position.
+pub(crate) fn text_from_bytes(bytes: Vec<u8>) -> Result<String, ReadError> {
     String::from_utf8(bytes).map_err(|e| {
         let offset = e.utf8_error().valid_up_to();
         let bytes = e.as_bytes();

@@ -5,7 +5,7 @@
 //! files (the poles of the teapot), are dropped.
 
 use super::validate::{fmt_num, triangle_is_degenerate};
-use super::{read_text, utf8_message, Mesh, ReadError};
+use super::{read_text_in, utf8_message, Files, Mesh, ReadError};
 use glam::DVec3;
 use std::io::{BufRead, Read};
 use std::path::Path;
@@ -13,18 +13,19 @@ use std::path::Path;
 /// Bytes of text between two progress reports.
 const PROGRESS_STEP: usize = 1 << 20;
 
-/// Reads `obj_path`, calling `progress(bytes read)` now and then; returns
+/// Reads `obj_path` from `files`, calling `progress(bytes read)` now and then; returns
 /// the mesh and the file's size. With `smooth`, the mesh gets per-vertex
 /// normals: the file's normals where it has them, else area-weighted
 /// averages of the face normals. The error message names the file (and the
 /// line where there is one) and the reason; the caller locates it in the
 /// scene file.
 pub(super) fn load_mesh(
+    files: &dyn Files,
     obj_path: &Path,
     smooth: bool,
     progress: &dyn Fn(u64),
 ) -> Result<(Mesh, u64), String> {
-    let text = read_text(obj_path).map_err(|e| match e {
+    let text = read_text_in(files, obj_path).map_err(|e| match e {
         ReadError::Io(e) => format!("cannot read mesh {}: {e}", obj_path.display()),
         ReadError::Utf8 { line, column, byte } => format!(
             "mesh {}:{line}:{column}: {}",
@@ -270,10 +271,11 @@ fn face_vertex(w: &str, counts: [usize; 3]) -> Result<(), String> {
     Ok(())
 }
 
-/// The 1-based line of the first `v` line of `obj_path` that reads as
-/// `p` (for messages about a vertex the loader kept).
-pub(super) fn vertex_line(obj_path: &Path, p: DVec3) -> Option<usize> {
-    let text = std::fs::read_to_string(obj_path).ok()?;
+/// The 1-based line of the first `v` line of `obj_path` (read from
+/// `files`) that reads as `p` (for messages about a vertex the loader
+/// kept).
+pub(super) fn vertex_line(files: &dyn Files, obj_path: &Path, p: DVec3) -> Option<usize> {
+    let text = String::from_utf8(files.read(obj_path).ok()?).ok()?;
     text.lines().enumerate().find_map(|(i, line)| {
         let mut words = line.split_whitespace();
         if words.next() != Some("v") {
@@ -437,7 +439,13 @@ f 1 4 6
                 "{text:?}:\n got {e}\nwant {expected}"
             );
         }
-        let e = load_mesh(Path::new("/nonexistent/dir/none.obj"), false, &|_| {}).unwrap_err();
+        let e = load_mesh(
+            &super::super::Disk,
+            Path::new("/nonexistent/dir/none.obj"),
+            false,
+            &|_| {},
+        )
+        .unwrap_err();
         assert!(
             e.starts_with("cannot read mesh /nonexistent/dir/none.obj: No such file"),
             "{e}"

@@ -5,7 +5,7 @@
 
 use super::error::SceneError;
 use super::validate::{self as v, CameraFault, Fault, Part, Quantity, Site};
-use super::{obj, Camera, Light, Material, Mesh, Object, Scene, Shape};
+use super::{obj, Camera, Files, Light, Material, Mesh, Object, Scene, Shape};
 use glam::DVec3;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
@@ -222,6 +222,8 @@ const SHAPE_KEYS: &[(&str, &[&str])] = &[
 struct Ctx<'a> {
     text: &'a str,
     path: &'a Path,
+    /// Where the `.obj` files come from.
+    files: &'a dyn Files,
 }
 
 impl Ctx<'_> {
@@ -544,7 +546,7 @@ impl Ctx<'_> {
             }
             let done = progress.done;
             let report = |n: u64| (progress.report)(done + n, progress.total);
-            let (mesh, bytes) = obj::load_mesh(&self.obj_path(file), smooth, &report)
+            let (mesh, bytes) = obj::load_mesh(self.files, &self.obj_path(file), smooth, &report)
                 .map_err(|m| self.err(file.span(), m))?;
             progress.done += bytes;
             return Ok(mesh);
@@ -641,7 +643,7 @@ impl Ctx<'_> {
                 {
                     // A vertex of an .obj file: name its line there too.
                     let obj = self.obj_path(file);
-                    let line = obj::vertex_line(&obj, m.positions[k])
+                    let line = obj::vertex_line(self.files, &obj, m.positions[k])
                         .map_or(String::new(), |l| format!(":{l}"));
                     let msg = format!("{} (in {}{line})", f.message, obj.display());
                     return self.err(file.span(), msg);
@@ -747,11 +749,12 @@ fn toml_message(msg: &str, value: &str) -> String {
 }
 
 /// Parses the native format. `path` is used for messages and to resolve
-/// `.obj` files (relative to its directory).
+/// `.obj` files (relative to its directory), which are read from `files`.
 pub(super) fn parse(
     text: &str,
     path: &Path,
     progress: &dyn Fn(u64, u64),
+    files: &dyn Files,
 ) -> Result<Scene, SceneError> {
     progress(0, text.len() as u64);
     let input: SceneIn = toml::from_str(text).map_err(|e| {
@@ -762,14 +765,14 @@ pub(super) fn parse(
             None => SceneError::in_file(path, msg),
         }
     })?;
-    let cx = Ctx { text, path };
+    let cx = Ctx { text, path, files };
     // The .obj files join the total now that their names are known (a
     // missing one counts 0 and fails when it is read).
     let obj_bytes: u64 = input
         .object
         .iter()
         .filter_map(|o| o.file.as_ref())
-        .map(|f| std::fs::metadata(cx.obj_path(f)).map_or(0, |m| m.len()))
+        .map(|f| files.size(&cx.obj_path(f)).unwrap_or(0))
         .sum();
     let mut meshes = MeshProgress {
         report: progress,
@@ -845,11 +848,13 @@ mod tests {
     const CAM: &str = "[camera]\nfrom = [0, -8, 3]\nat = [0, 0, 0]\n";
 
     fn parse_ok(text: &str) -> Scene {
-        parse(text, Path::new("t.toml"), &|_, _| {}).unwrap_or_else(|e| panic!("{e}"))
+        parse(text, Path::new("t.toml"), &|_, _| {}, &super::super::Disk)
+            .unwrap_or_else(|e| panic!("{e}"))
     }
 
     fn parse_err(text: &str) -> (usize, usize, String) {
-        let e = parse(text, Path::new("t.toml"), &|_, _| {}).expect_err("should fail");
+        let e = parse(text, Path::new("t.toml"), &|_, _| {}, &super::super::Disk)
+            .expect_err("should fail");
         (
             e.line().unwrap(),
             e.column().unwrap(),
