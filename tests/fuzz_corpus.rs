@@ -113,3 +113,41 @@ fn control_character_in_a_toml_comment() {
         Some("x.toml:1:23: control character U+0017 is not allowed in TOML text (only tab is)")
     );
 }
+
+/// obj: face indices that tobj 4 multiplies unchecked (a relative index
+/// before the first normal or texture coordinate wraps to near 2^64; a
+/// huge positive one overflows the multiplication) panicked inside tobj
+/// (in a release build: an out-of-bounds panic or a wrong normal). The
+/// loader now refuses them first, at their line.
+#[test]
+fn obj_face_indices_tobj_cannot_take() {
+    let cases = [
+        (
+            "crash-67e57b81.obj",
+            // The file's first problem is the line before the face.
+            "mesh m.obj:5: normal: `1e390` is not a finite single-precision number",
+        ),
+        (
+            "relative-normal-before-first.obj",
+            "mesh m.obj:5: normal index -4 is out of range: 1 defined before this line",
+        ),
+        (
+            "normal-index-overflows.obj",
+            "mesh m.obj:5: normal index 6148914691236517206 is out of range: 1 defined before this line",
+        ),
+        (
+            "relative-texcoord-before-any.obj",
+            "mesh m.obj:4: texture coordinate index -1 is out of range: 0 defined before this line",
+        ),
+        (
+            "texcoord-index-beyond-file.obj",
+            "mesh m.obj:4: texture coordinate index 9223372036854775807 is out of range: the file has 63 bytes",
+        ),
+    ];
+    for (name, want) in cases {
+        let o = finding("obj", name);
+        let m = o.message().unwrap_or_else(|| panic!("{name}: {o:?}"));
+        assert!(m.starts_with("x.toml:8:8: "), "{name}: {m}");
+        assert!(m.contains(want), "{name}: {m}");
+    }
+}

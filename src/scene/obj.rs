@@ -79,6 +79,12 @@ pub(super) fn parse_obj(
         Some((line, why)) => format!("mesh {}:{line}: {why}", obj_path.display()),
         None => format!("mesh {}: {reason}", obj_path.display()),
     };
+    if let Some((line, why)) = unsafe_index(text) {
+        let (line, why) = find_problem(text)
+            .filter(|(l, _)| *l <= line)
+            .unwrap_or((line, why));
+        return Err(format!("mesh {}:{line}: {why}", obj_path.display()));
+    }
     // `..Default::default()` covers the fields some tobj features add.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -182,6 +188,52 @@ fn floats<'a>(
         out.push(x);
     }
     Ok(out)
+}
+
+/// The first `f` line (1-based) with an index tobj 4 cannot take safely,
+/// and what it is: a relative (negative) index reaching before the first
+/// element of its kind, or one larger than the file (in bytes). tobj turns
+/// the first into an index near 2^64 and multiplies indices unchecked, so
+/// either overflows: a panic in a debug build, an out-of-bounds panic or a
+/// wrong normal in a release build. Such files are refused before tobj
+/// reads them. Found by fuzzing (docs/reliability.md).
+fn unsafe_index(text: &str) -> Option<(usize, String)> {
+    const WHAT: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let limit = text.len() as u64;
+    let mut counts = [0u64; 3];
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") => {
+                for w in words {
+                    for (k, part) in w.split('/').take(3).enumerate() {
+                        let Ok(x) = part.parse::<i64>() else {
+                            continue;
+                        };
+                        let why = if x < 0 && x.unsigned_abs() > counts[k] {
+                            format!(
+                                "{} index {x} is out of range: {} defined before this line",
+                                WHAT[k], counts[k]
+                            )
+                        } else if x > 0 && x as u64 > limit {
+                            format!(
+                                "{} index {x} is out of range: the file has {limit} bytes",
+                                WHAT[k]
+                            )
+                        } else {
+                            continue;
+                        };
+                        return Some((i + 1, why));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    None
 }
 
 /// The first line (1-based) with a problem tobj or this loader would
