@@ -1,6 +1,7 @@
 //! Scene → Packed: camera-relative f32 std430 arrays and the voxel grid.
 //! Both tracers read only what this produces.
 
+pub mod bvh;
 pub mod grid;
 pub mod layout;
 pub mod pages;
@@ -11,7 +12,7 @@ use crate::scene::{Scene, Shape};
 use glam::DVec3;
 use grid::Bounds;
 pub use grid::{Progress, Stage};
-use layout::{Globals, Light, Material, Prim};
+use layout::{BvhChild, Globals, Light, Material, Prim};
 pub use pages::Pages;
 use std::time::Instant;
 
@@ -26,6 +27,20 @@ pub enum Sampling {
     Corners,
 }
 
+/// The acceleration structure the tracers walk (`--accel`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Accel {
+    /// The uniform voxel grid, walked by 3D-DDA.
+    Grid,
+    /// A bounding-volume hierarchy built with the surface-area heuristic.
+    Bvh,
+    /// Chosen per scene by the rule in docs/method.md ("Choosing the
+    /// structure").
+    #[default]
+    Auto,
+}
+
 /// The render settings that shape the packed data.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
@@ -37,6 +52,9 @@ pub struct Settings {
     pub sampling: Sampling,
     /// `--grid`: this resolution or a refusal; `None`: the heuristic.
     pub grid: Option<[u32; 3]>,
+    /// `--accel`: the acceleration structure. An explicit `--grid`
+    /// with `Auto` means the grid.
+    pub accel: Accel,
     /// The memory the run may use (`--memory-limit`); packing refuses,
     /// before allocating, a run whose estimate is over it.
     pub budget: Budget,
@@ -52,6 +70,7 @@ impl Default for Settings {
             spp: 1,
             sampling: Sampling::Centers,
             grid: None,
+            accel: Accel::Auto,
             budget: Budget::system(),
         }
     }
@@ -86,6 +105,9 @@ pub enum PackError {
         count: u64,
         max: u64,
     },
+    /// `--grid` with `--accel bvh`.
+    #[error("--grid sets the voxel grid's resolution; it does not go with --accel bvh")]
+    GridWithBvh,
     /// An image side over `MAX_IMAGE_SIZE`.
     #[error("image {what} {value} is over the limit of {MAX_IMAGE_SIZE}")]
     ImageSize { what: &'static str, value: u32 },
@@ -141,6 +163,7 @@ impl Preset {
                 spp: 1,
                 sampling: Sampling::Corners,
                 grid: None,
+                accel: Accel::Auto,
                 budget: Budget::system(),
             },
         }
@@ -154,7 +177,27 @@ impl Preset {
     }
 }
 
-/// What the grid build cost.
+/// The acceleration structure in use and what it cost (`--stats`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AccelInfo {
+    /// `Grid` or `Bvh` (never `Auto`).
+    pub structure: Accel,
+    /// Chosen by `Accel::Auto`'s rule.
+    pub auto: bool,
+    /// Build time: ordering, copies, and the structure itself.
+    pub build_seconds: f64,
+    /// Bytes the structure keeps for the render.
+    pub bytes: usize,
+    /// BVH only (0 for the grid): interior nodes, leaves, the deepest
+    /// interior node's depth, the most primitives in a leaf.
+    pub nodes: usize,
+    pub leaves: usize,
+    pub depth: u32,
+    pub max_leaf: u32,
+}
+
+/// What the grid build cost (all zero but `duplicates` when the BVH is
+/// in use).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GridInfo {
     pub cells: [u32; 3],
@@ -176,7 +219,10 @@ pub struct Packed {
     pub lights: Vec<Light>,
     pub cell_start: Pages<u32>,
     pub refs: Pages<u32>,
+    /// Two entries per interior node (`BvhChild`); empty with the grid.
+    pub bvh: Pages<BvhChild>,
     pub grid: GridInfo,
+    pub accel: AccelInfo,
 }
 
 impl Packed {
@@ -193,6 +239,15 @@ impl Packed {
         match c {
             Counting::Traced => *f &= !FLAG_SPD_COUNTING,
             Counting::Spd => *f |= FLAG_SPD_COUNTING,
+        }
+    }
+
+    /// The structure the tracers walk (`Grid` or `Bvh`).
+    pub fn structure(&self) -> Accel {
+        if self.globals.flags[1] == ACCEL_BVH {
+            Accel::Bvh
+        } else {
+            Accel::Grid
         }
     }
 
@@ -650,6 +705,22 @@ pub fn census(scene: &Scene) -> (u64, u64, u64) {
     (prims, extra, bytes)
 }
 
+/// The structure to build for `settings` over the finite primitives'
+/// `bounds`, and whether `Accel::Auto` chose it. An explicit `--grid`
+/// under `Auto` means the grid.
+pub fn choose_structure(settings: &Settings, bounds: &[Bounds]) -> (Accel, bool) {
+    match settings.accel {
+        Accel::Auto if settings.grid.is_some() => (Accel::Grid, false),
+        Accel::Auto => (auto_structure(bounds), true),
+        a => (a, false),
+    }
+}
+
+/// `Accel::Auto`'s rule (docs/method.md, "Choosing the structure").
+pub fn auto_structure(_bounds: &[Bounds]) -> Accel {
+    Accel::Bvh
+}
+
 /// Packs a scene for rendering with `settings`, or refuses it by estimate
 /// (before allocating) when it does not fit `settings.budget`.
 pub fn pack(scene: &Scene, settings: &Settings) -> Result<Packed, PackError> {
@@ -694,7 +765,11 @@ pub fn pack_with_progress(
         cells: 1,
         refs: 0,
         explicit_grid: settings.grid.is_some(),
+        bvh: false,
     };
+    if settings.accel == Accel::Bvh && settings.grid.is_some() {
+        return Err(PackError::GridWithBvh);
+    }
     // The image and the primitives, before any of them is allocated.
     settings.budget.check(&need)?;
 
@@ -775,33 +850,53 @@ pub fn pack_with_progress(
     need.bounded = n;
     need.extra = b.extra.len() as u64;
     let budget = &settings.budget;
-    let max_refs = |cells: u64| need.max_refs(budget, cells);
-    let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
-        Ok(g) => g,
-        Err(r) => {
-            let over = Need {
-                cells: r.cells,
-                refs: r.refs,
-                ..need
-            };
-            return Err(match budget.check(&over) {
-                Err(e) => e.into(),
-                Ok(()) => PackError::GridRefs {
-                    dims: r.dims,
-                    refs: r.refs,
-                    explicit: settings.grid.is_some(),
-                },
-            });
-        }
-    };
-    drop(bounds);
-    let grid_seconds = t0.elapsed().as_secs_f64();
+    let (structure, auto) = choose_structure(settings, &bounds);
+    need.bvh = structure == Accel::Bvh;
     let n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
-    for (i, (mut p, _)) in b.bounded.into_iter().enumerate() {
-        (p.cell_lo, p.cell_hi) = g.ranges[i];
-        prims.push(p);
-    }
+    let (g, tree) = if need.bvh {
+        budget.check(&need)?;
+        let tree = bvh::build(&bounds, progress);
+        drop(bounds);
+        // Leaf order: each leaf a contiguous run of primitives.
+        for &i in &tree.order {
+            prims.push(b.bounded[i as usize].0);
+        }
+        let empty = grid::Grid {
+            dims: [1, 1, 1],
+            cell_start: vec![0, 0],
+            ..grid::Grid::default()
+        };
+        (empty, tree)
+    } else {
+        let max_refs = |cells: u64| need.max_refs(budget, cells);
+        let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
+            Ok(g) => g,
+            Err(r) => {
+                let over = Need {
+                    cells: r.cells,
+                    refs: r.refs,
+                    ..need
+                };
+                return Err(match budget.check(&over) {
+                    Err(e) => e.into(),
+                    Ok(()) => PackError::GridRefs {
+                        dims: r.dims,
+                        refs: r.refs,
+                        explicit: settings.grid.is_some(),
+                    },
+                });
+            }
+        };
+        drop(bounds);
+        for (i, (mut p, _)) in b.bounded.iter().copied().enumerate() {
+            (p.cell_lo, p.cell_hi) = g.ranges[i];
+            prims.push(p);
+        }
+        (g, bvh::Bvh::default())
+    };
+    drop(b.bounded);
+    let build_seconds = t0.elapsed().as_secs_f64();
     prims.extend(b.unbounded);
 
     let forward = (cam.at - cam.from).normalize();
@@ -832,7 +927,11 @@ pub fn pack_with_progress(
             g.lo[0],
             g.lo[1],
             g.lo[2],
-            if n_bounded > 0 { 1.0 } else { 0.0 },
+            if n_bounded > 0 && structure == Accel::Grid {
+                1.0
+            } else {
+                0.0
+            },
         ],
         grid_max: [g.hi[0], g.hi[1], g.hi[2], 0.0],
         grid_cell: [g.cell[0], g.cell[1], g.cell[2], 0.0],
@@ -851,14 +950,37 @@ pub fn pack_with_progress(
             0.0,
             0.0,
         ],
-        flags: [0; 4],
+        flags: [
+            0,
+            if need.bvh { ACCEL_BVH } else { ACCEL_GRID },
+            tree.node_count() as u32,
+            0,
+        ],
     };
-    let grid_info = GridInfo {
-        cells: g.dims,
-        duplicates,
-        refs: g.refs.len(),
-        bytes: (g.cell_start.len() + g.refs.len()) * 4,
-        seconds: grid_seconds,
+    let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4;
+    let grid_info = if need.bvh {
+        GridInfo {
+            duplicates,
+            ..GridInfo::default()
+        }
+    } else {
+        GridInfo {
+            cells: g.dims,
+            duplicates,
+            refs: g.refs.len(),
+            bytes: grid_bytes,
+            seconds: build_seconds,
+        }
+    };
+    let accel = AccelInfo {
+        structure,
+        auto,
+        build_seconds,
+        bytes: if need.bvh { tree.bytes() } else { grid_bytes },
+        nodes: tree.node_count(),
+        leaves: tree.leaves as usize,
+        depth: tree.depth,
+        max_leaf: tree.max_leaf,
     };
     Ok(Packed {
         globals,
@@ -868,7 +990,9 @@ pub fn pack_with_progress(
         lights,
         cell_start: g.cell_start.into(),
         refs: g.refs.into(),
+        bvh: tree.nodes.into(),
         grid: grid_info,
+        accel,
     })
 }
 
@@ -1011,9 +1135,11 @@ mod tests {
         ]
     }
 
+    /// The grid (these tests are about it) under a 1 GiB budget.
     fn small() -> Settings {
         Settings {
             budget: Budget::bytes(1 << 30),
+            accel: Accel::Grid,
             ..Settings::default()
         }
     }
@@ -1178,6 +1304,7 @@ mod tests {
             width: Some(48),
             height: Some(32),
             budget,
+            accel: Accel::Grid,
             ..Settings::default()
         };
         let full = pack(&s, &settings(Budget::unlimited())).unwrap();
@@ -1227,7 +1354,7 @@ mod tests {
         assert_eq!(p.counting(), Counting::Spd);
         assert_eq!(p.globals.flags[0], FLAG_SPD_COUNTING);
         p.set_counting(Counting::Traced);
-        assert_eq!(p.globals.flags, [0; 4]);
+        assert_eq!(p.globals.flags[0], 0);
     }
 
     #[test]
