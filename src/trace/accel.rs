@@ -23,7 +23,7 @@ pub fn accel_traverse<F: Real>(
 ) {
     let g = s.globals;
     for i in g.counts[0]..g.counts[1] {
-        if query_prim(s, q, i, ray, pre, work) {
+        if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
             return;
         }
     }
@@ -89,8 +89,8 @@ pub fn closest_hit_brute<F: Real>(
 ) -> Option<(Hit<F>, u32)> {
     let mut q = Query::closest(tmax);
     let mut work = Work::default();
-    for i in 0..s.prims.len() as u32 {
-        query_prim(s, &mut q, i, ray, pre, &mut work);
+    for (i, prim) in s.prims.iter().enumerate() {
+        query_prim(s, &mut q, prim, i as u32, ray, pre, &mut work);
     }
     q.hit
 }
@@ -104,8 +104,8 @@ pub fn transmittance_brute<F: Real>(
 ) -> V3<F> {
     let mut q = Query::shadow(dist, SHADOW_CACHE_LIGHTS as usize);
     let mut work = Work::default();
-    for i in 0..s.prims.len() as u32 {
-        if query_prim(s, &mut q, i, ray, pre, &mut work) {
+    for (i, prim) in s.prims.iter().enumerate() {
+        if query_prim(s, &mut q, prim, i as u32, ray, pre, &mut work) {
             return V3::zero();
         }
     }

@@ -77,8 +77,9 @@ pub fn bvh_traverse<F: Real>(
     for _ in 0..2 * nodes as u64 + 1 {
         if t <= q.t {
             if count > 0 {
-                for i in link..link + count {
-                    if query_prim(s, q, i, ray, pre, work) {
+                let first = link as usize;
+                for (k, prim) in s.prims[first..first + count as usize].iter().enumerate() {
+                    if query_prim(s, q, prim, link + k as u32, ray, pre, work) {
                         return;
                     }
                 }

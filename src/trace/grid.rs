@@ -286,10 +286,11 @@ pub fn grid_traverse<F: Real>(
         }
         let (t_exit, axis) = dda_exit(&dda);
         for &r in &s.refs[start..end] {
-            if seen_before(&s.prims[r as usize], &dda) {
+            let prim = &s.prims[r as usize];
+            if seen_before(prim, &dda) {
                 continue;
             }
-            if query_prim(s, q, r, ray, pre, work) {
+            if query_prim(s, q, prim, r, ray, pre, work) {
                 return;
             }
         }

@@ -13,6 +13,7 @@ use super::intersect::{intersect, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::SceneView;
 use crate::constants::SHADOW_CACHE_LIGHTS;
+use crate::pack::layout::Prim;
 
 /// Per-thread scratch of the tracer: counters of intersection work (for
 /// tests and profiling) and the shadow cache.
@@ -87,18 +88,19 @@ impl<F: Real> Query<F> {
     }
 }
 
-/// Tests primitive `i` for query `q`; true when the query is done (an
-/// opaque blocker for a feeler: nothing further can change the answer).
+/// Tests `prim` (primitive `i`) for query `q`; true when the query is
+/// done (an opaque blocker for a feeler: nothing further can change the
+/// answer).
 #[inline(always)]
 pub fn query_prim<F: Real>(
     s: &SceneView,
     q: &mut Query<F>,
+    prim: &Prim,
     i: u32,
     ray: &Ray<F>,
     pre: &RayPre<F>,
     work: &mut Work,
 ) -> bool {
-    let prim = &s.prims[i as usize];
     work.tests += 1;
     if let Some(h) = intersect(prim, s.extra, ray, pre, q.t) {
         if q.shadow {
