@@ -69,7 +69,7 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
                 uint end = link + count;
                 uint i = link;
                 for (; i < end; i++) {
-                    if (query_prim(q, i, ray, pre)) {
+                    if (query_prim(q, prims[i], i, ray, pre)) {
                         break;
                     }
                 }

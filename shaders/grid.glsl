@@ -249,10 +249,11 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
         uint k = start;
         for (; k < end; k++) {
             uint r = refs[k];
-            if (seen_before(prims[r], dda)) {
+            Prim prim = prims[r];
+            if (seen_before(prim, dda)) {
                 continue;
             }
-            if (query_prim(q, r, ray, pre)) {
+            if (query_prim(q, prim, r, ray, pre)) {
                 break;
             }
         }

@@ -64,10 +64,9 @@ Query query_shadow(float dist, uint light) {
     return Query(dist, true, light, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu, vec3(1.0), false);
 }
 
-// Tests primitive i for query q; true when the query is done (an opaque
-// blocker for a feeler: nothing further can change the answer).
-bool query_prim(inout Query q, uint i, Ray ray, RayPre pre) {
-    Prim prim = prims[i];
+// Tests prim (primitive i) for query q; true when the query is done (an
+// opaque blocker for a feeler: nothing further can change the answer).
+bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
     Hit h;
     if (intersect(prim, ray, pre, q.t, h)) {
         if (q.shadow) {
