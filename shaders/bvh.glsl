@@ -13,30 +13,28 @@
 #include "query.glsl"
 
 // Where the ray enters the child's box within the segment 0..tmax (0 from
-// inside) in t; false when it misses it. Slabs, as aabox: a ray parallel
-// to a slab pair misses unless its origin lies between the planes.
+// inside) in t; false when it misses it. Slabs, the near plane chosen by
+// the sign of 1/d. The bounds are narrowed by comparisons, which ignore a
+// NaN: a ray parallel to an axis whose origin lies on one of the box's
+// planes (0·∞) counts as inside that slab. A parallel ray outside a slab
+// gets t0 = +∞: a miss unless tmax is +∞ too, then a walk for nothing,
+// never a wrong skip (src/trace/bvh.rs).
 bool bvh_entry(BvhChild c, Ray ray, RayPre pre, float tmax, out float t) {
     float t0 = 0.0;
     float t1 = tmax;
-    t = 0.0;
     for (int i = 0; i < 3; i++) {
         float o = ray.o[i];
-        float d = ray.d[i];
-        float lo = c.lo[i];
-        float hi = c.hi[i];
-        if (d == 0.0) {
-            if (o < lo || o > hi) {
-                return false;
-            }
-            continue;
-        }
         float inv = pre.inv_d[i];
-        precise float ta = (lo - o) * inv;
-        precise float tb = (hi - o) * inv;
-        float tn = d > 0.0 ? ta : tb;
-        float tf = d > 0.0 ? tb : ta;
-        t0 = max(t0, tn);
-        t1 = min(t1, tf);
+        float near = inv >= 0.0 ? c.lo[i] : c.hi[i];
+        float far = inv >= 0.0 ? c.hi[i] : c.lo[i];
+        precise float tn = (near - o) * inv;
+        precise float tf = (far - o) * inv;
+        if (tn > t0) {
+            t0 = tn;
+        }
+        if (tf < t1) {
+            t1 = tf;
+        }
     }
     t = t0;
     return t0 <= t1;

@@ -322,3 +322,52 @@ fn the_bvh_tests_fewer_primitives_on_clustered_scenes() {
         g.work.tests
     );
 }
+
+/// Rays parallel to the axes and to the axis planes (components exactly
+/// 0, 1/d = ±∞), from lattice points on the primitives' own planes, on a
+/// lattice of boxes and spheres: both structures equal brute force.
+#[test]
+fn axis_parallel_rays_equal_brute_force() {
+    let mut objects = Vec::new();
+    for i in 0..64 {
+        let c = v((i % 4) as f64, (i / 4 % 4) as f64, (i / 16) as f64) * 2.0;
+        let shape = if i % 3 == 0 {
+            Shape::Sphere {
+                center: c,
+                radius: 0.5,
+            }
+        } else {
+            Shape::Box {
+                min: c,
+                max: c + DVec3::ONE,
+            }
+        };
+        objects.push(Object { shape, material: 0 });
+    }
+    let mut s = random_scene(1, 0, false);
+    s.objects = objects;
+    s.camera.from = DVec3::ZERO;
+    s.camera.at = v(1.0, 1.0, 1.0);
+    let mut dirs = Vec::new();
+    for d in [
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, -1.0],
+        [-1.0, 0.0, 1.0],
+    ] {
+        dirs.push(d);
+        dirs.push(d.map(|x: f32| -x));
+    }
+    let mut rays = Vec::new();
+    for k in 0..8 * 8 * 8 {
+        let o = [k % 8, k / 8 % 8, k / 64].map(|x| x as f32);
+        for d in &dirs {
+            rays.push((o, *d, 20.0));
+        }
+    }
+    for accel in [Accel::Grid, Accel::Bvh] {
+        check_against_brute(&pack_with(&s, accel), &rays).unwrap();
+    }
+}

@@ -17,29 +17,33 @@ use crate::constants::BVH_STACK_SIZE;
 use crate::pack::layout::BvhChild;
 
 /// Where the ray enters the child's box within the segment 0..`tmax`
-/// (0 from inside), or `None` when it misses it. Slabs, as `aabox`: a
-/// ray parallel to a slab pair misses unless its origin lies between
-/// the planes (no 0·∞).
+/// (0 from inside), or `None` when it misses it. Slabs, the near plane
+/// chosen by the sign of 1/d. The bounds are narrowed by comparisons
+/// (`tn > t0`), which ignore a NaN: a ray parallel to an axis (1/d = ±∞)
+/// whose origin lies on one of the box's planes (0·∞) counts as inside
+/// that slab, as it is. A parallel ray outside a slab gets t0 = +∞, a
+/// miss unless `tmax` is +∞ too; then the box is entered "at +∞" and
+/// walked for nothing, never wrongly skipped.
 #[inline(always)]
 pub fn bvh_entry<F: Real>(c: &BvhChild, ray: &Ray<F>, pre: &RayPre<F>, tmax: F) -> Option<F> {
     let mut t0 = F::zero();
     let mut t1 = tmax;
     for i in 0..3 {
         let o = ray.o.get(i);
-        let d = ray.d.get(i);
-        let (lo, hi) = (F::of(c.lo[i]), F::of(c.hi[i]));
-        if d == F::zero() {
-            if o < lo || o > hi {
-                return None;
-            }
-            continue;
-        }
         let inv = pre.inv_d.get(i);
-        let ta = (lo - o) * inv;
-        let tb = (hi - o) * inv;
-        let (tn, tf) = if d > F::zero() { (ta, tb) } else { (tb, ta) };
-        t0 = t0.max(tn);
-        t1 = t1.min(tf);
+        let (near, far) = if inv >= F::zero() {
+            (F::of(c.lo[i]), F::of(c.hi[i]))
+        } else {
+            (F::of(c.hi[i]), F::of(c.lo[i]))
+        };
+        let tn = (near - o) * inv;
+        let tf = (far - o) * inv;
+        if tn > t0 {
+            t0 = tn;
+        }
+        if tf < t1 {
+            t1 = tf;
+        }
     }
     if t0 <= t1 {
         Some(t0)
@@ -86,7 +90,9 @@ pub fn bvh_traverse<F: Real>(
             } else {
                 work.nodes += 1;
                 let k = 2 * link as usize;
-                let (c0, c1) = (&s.bvh[k], &s.bvh[k + 1]);
+                let [c0, c1] = &s.bvh[k..k + 2] else {
+                    return;
+                };
                 let e0 = bvh_entry(c0, ray, pre, q.t);
                 let e1 = bvh_entry(c1, ray, pre, q.t);
                 let next = match (e0, e1) {
