@@ -37,6 +37,8 @@ repeat() { # n line
 { view "512 512"; echo "$opaque"; echo 's 0 0 0 5e-324'; } >tiny-5e-324.nff
 { view "512 512"; echo "$opaque"; awk 'BEGIN { for (i = 0; i < 1000; i++) printf "s %g 0 0 1e-120\n", i * 1e-3 }'; } >tiny-line-1k.nff
 { view "512 512"; echo "$opaque"; repeat 100000 's 0.5 0.5 0.5 1e-300'; } >point-100k.nff
+{ view "512 512"; echo "$opaque"; repeat 100000 's 0.5 0.5 0.5 1e-5'; } >point-100k-small.nff
+{ view "512 512"; echo "$opaque"; awk 'BEGIN { for (i = 0; i < 100000; i++) printf "s 0.5 0.5 0.5 %g\n", 1e-5 * (1 + i * 1e-6) }'; } >point-100k-nested.nff
 "$W" generate --count 1000000 -o spheres-1m.nff
 SHOW=$ROOT/scenes/showcase.toml
 
@@ -90,7 +92,9 @@ case_ "overlapping primitives" "10 k transparent copies (kept), 64²" glass-10k.
 case_ "degenerate extents" "radius 1e-120" tiny-1e-120.nff
 case_ "degenerate extents" "radius 5e-324" tiny-5e-324.nff
 case_ "degenerate extents" "1000 spheres of radius 1e-120 on a line" tiny-line-1k.nff
-case_ "degenerate extents" "100 k spheres at one point" point-100k.nff
+case_ "degenerate extents" "100 k spheres of radius 1e-300 at one point" point-100k.nff
+case_ "degenerate extents" "100 k spheres of radius 1e-5 at one point" point-100k-small.nff
+case_ "degenerate extents" "100 k spheres at one centre, 10 k distinct radii" point-100k-nested.nff
 case_ "explicit grid" "--grid 1023x1023x1023" "$SHOW" --grid 1023x1023x1023
 case_ "explicit grid" "--grid 1023x1023x16" "$SHOW" --grid 1023x1023x16
 case_ "image size" "--width 65536 --height 65536" "$SHOW" --width 65536 --height 65536

@@ -152,9 +152,22 @@ bool triangle(vec3 v0, vec3 v1, vec3 v2, Ray ray, RayPre pre, float tmax, out Hi
     return false;
 }
 
-// Planar polygon: the plane, then a 2D test with the dominant normal axis
-// dropped: all edges on one side for convex polygons, the crossings test
-// (even-odd) for the rest. Vertices in extra[data .. data + count].
+// Vertex j of a polygon, projected (pack::polygon): two to a vec4.
+vec2 polyVertex(uint base, uint j) {
+    vec4 e = extra[base + j / 2u];
+    return (j % 2u) == 0u ? e.xy : e.zw;
+}
+
+// Float i of the stream that starts at extra[base].
+float floatAt(uint base, uint i) {
+    return extra[base + i / 4u][i % 4u];
+}
+
+// Planar polygon: the plane, then a 2D test in the plane of the two axes
+// other than the normal's largest (the vertices are packed projected,
+// pack::polygon): all edges on one side for convex polygons, the
+// crossings test (even-odd) for the rest, over the hit point's edge band
+// when the polygon has bands (the same parity as over every edge).
 bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     vec3 n = prim.a.xyz;
     Hit ph;
@@ -180,35 +193,45 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     float px = p[i0];
     float py = p[i1];
     uint base = prim.data;
-    // One loop for both tests (Rust keeps two; same arithmetic): llvmpipe
-    // 22.3 bug: all loops share a 65535-iteration budget per SIMD group
+    uint bands = uint(prim.c.z);
+    bool banded = !convex && bands > 0u;
+    uint lists = base + (count + 1u) / 2u;
+    // Edges [lo, hi): every edge, or the hit point's band's list.
+    uint lo = 0u;
+    uint hi = count;
+    if (banded) {
+        precise float fb = floor((py - prim.c.x) * prim.c.y);
+        uint b = uint(min(max(fb, 0.0), float(bands - 1u)));
+        lo = uint(floatAt(lists, b));
+        hi = uint(floatAt(lists, b + 1u));
+    }
+    // One loop for both tests (Rust has one too): llvmpipe 22.3 bug: all
+    // loops share a 65535-iteration budget per SIMD group
     // (LP_MAX_TGSI_LOOP_ITERATIONS), and a loop no lane enters still costs
     // one, so each extra loop here costs one per intersect() call.
     bool pos = false;
     bool neg = false;
     bool inside = false;
-    vec3 prev = extra[base + count - 1u].xyz;
-    for (uint k = 0u; k < count; k++) {
-        vec3 cur = extra[base + k].xyz;
+    for (uint e = lo; e < hi; e++) {
+        uint j = banded ? uint(floatAt(lists, bands + 1u + e)) : e;
+        vec2 a = polyVertex(base, j == 0u ? count - 1u : j - 1u);
+        vec2 c = polyVertex(base, j);
+        float ax = a.x;
+        float ay = a.y;
+        float bx = c.x;
+        float by = c.y;
         if (convex) {
-            precise float ex = cur[i0] - prev[i0];
-            precise float ey = cur[i1] - prev[i1];
-            precise float e = ex * (py - prev[i1]) - ey * (px - prev[i0]);
-            pos = pos || e > 0.0;
-            neg = neg || e < 0.0;
-        } else {
-            float ay = prev[i1];
-            float by = cur[i1];
-            if ((ay > py) != (by > py)) {
-                float ax = prev[i0];
-                float bx = cur[i0];
-                precise float xc = ax + (py - ay) * (bx - ax) / (by - ay);
-                if (px < xc) {
-                    inside = !inside;
-                }
+            precise float ex = bx - ax;
+            precise float ey = by - ay;
+            precise float ee = ex * (py - ay) - ey * (px - ax);
+            pos = pos || ee > 0.0;
+            neg = neg || ee < 0.0;
+        } else if ((ay > py) != (by > py)) {
+            precise float xc = ax + (py - ay) * (bx - ax) / (by - ay);
+            if (px < xc) {
+                inside = !inside;
             }
         }
-        prev = cur;
     }
     if (convex ? !(pos && neg) : inside) {
         h = ph;

@@ -306,16 +306,28 @@ fn run_render(dir: &Path, scene: &Path, args: &[&str]) -> (i32, String, Option<s
 }
 
 /// Issue 7's piles of identical spheres (which used to run out of memory,
-/// panic or file for minutes) render, on one cell; tiny radii (whose
-/// volume underflowed into a 1023³ grid) render on a small grid.
+/// panic or file for minutes) render, on one cell; small radii render on a
+/// small grid. Radii f32 cannot hold (whose volume underflowed into a
+/// 1023³ grid) are refused when the scene is read, at the value
+/// (`docs/scene-format.md`, "f32 limits").
 #[test]
 fn degenerate_extents_render_on_a_small_grid() {
     let dir = tempfile::tempdir().unwrap();
+    for (name, body, col) in [
+        ("tiny-1e-120.nff", "s 0 0 0 1e-120\n", 9),
+        ("tiny-5e-324.nff", "s 0 0 0 5e-324\n", 9),
+        ("point-1e-300.nff", "s 0.5 0.5 0.5 1e-300\n", 15),
+    ] {
+        let scene = write(dir.path(), name, &format!("{NFF_VIEW}{body}"));
+        let (code, err, _) = run_render(dir.path(), &scene, &[]);
+        assert_eq!(code, 2, "{name}: {err}");
+        let at = format!("{name}:11:{col}: radius must be at least 1e-18");
+        assert!(err.contains(&at), "{name}: {err}");
+    }
     for (name, body, cells_max) in [
         ("same-100k.nff", "s 0 0 0 1\n".repeat(100_000), 1),
-        ("tiny-1e-120.nff", "s 0 0 0 1e-120\n".into(), 3000),
-        ("tiny-5e-324.nff", "s 0 0 0 5e-324\n".into(), 3000),
-        ("point-10k.nff", "s 0.5 0.5 0.5 1e-300\n".repeat(10_000), 1),
+        ("tiny-1e-5.nff", "s 0 0 0 1e-5\n".into(), 3000),
+        ("point-10k.nff", "s 0.5 0.5 0.5 1e-5\n".repeat(10_000), 1),
     ] {
         let scene = write(dir.path(), name, &format!("{NFF_VIEW}{body}"));
         let (code, err, j) = run_render(dir.path(), &scene, &[]);
@@ -403,5 +415,56 @@ fn oversized_images_and_grids_are_refused_by_estimate() {
             .output()
             .unwrap();
         assert_eq!(out.status.code(), Some(2), "--memory-limit {bad}");
+    }
+}
+
+/// The README's command list names every option each command's --help
+/// lists (so neither drifts from the other).
+#[test]
+fn readme_lists_every_option_of_every_command() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let start = readme
+        .find("## The command line")
+        .expect("README has the command line section");
+    let section = &readme[start..];
+    let skip = ["--help", "--version", "--verbose", "--quiet"];
+    for cmd in [
+        "render", "validate", "devices", "generate", "export", "bench",
+    ] {
+        let a = whitted().args([cmd, "--help"]).assert().success();
+        let help = String::from_utf8_lossy(&a.get_output().stdout).to_string();
+        let mut seen = 0;
+        for line in help.lines().map(str::trim_start) {
+            // "-o, --output <OUTPUT>  ..." or "--width <WIDTH>  ..."
+            let (short, rest) = match line.strip_prefix('-') {
+                Some(r) if !r.starts_with('-') && r.len() > 3 && &r[1..3] == ", " => {
+                    (Some(format!("-{}", &r[..1])), &r[3..])
+                }
+                _ => (None, line),
+            };
+            let Some(long) = rest.strip_prefix("--") else {
+                continue;
+            };
+            let long = format!(
+                "--{}",
+                long.split(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                    .next()
+                    .unwrap()
+            );
+            if skip.contains(&long.as_str()) {
+                continue;
+            }
+            seen += 1;
+            let listed = section.contains(&long)
+                || short
+                    .as_ref()
+                    .is_some_and(|s| section.contains(&format!("{s} ")));
+            assert!(listed, "README's command list lacks `{cmd} {long}`");
+        }
+        assert!(
+            seen > 0 || cmd == "devices",
+            "{cmd}: no option read from --help"
+        );
     }
 }

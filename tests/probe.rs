@@ -280,8 +280,8 @@ fn target(p: &Packed, i: usize) -> ([f32; 3], f32) {
             )
         }
         KIND_POLYGON => {
-            let k = pr.b[0] as usize;
-            let vs = &p.extra[pr.data as usize..pr.data as usize + k];
+            let vs = whitted::pack::polygon::vertices_3d(pr, &p.extra);
+            let k = vs.len();
             let c = [0, 1, 2].map(|j| vs.iter().map(|v| v[j]).sum::<f32>() / k as f32);
             (c, 1.0)
         }

@@ -519,3 +519,68 @@ fn shadows_dim_through_glass_and_stop_at_stone() {
     assert!((got[1] - 0.25 * lit).abs() < 1e-4, "{got:?}");
     assert!((got[2] - lit).abs() < 1e-4, "{got:?}");
 }
+
+/// Where the camera looks does not move secondary rays: the surface offset
+/// follows the scene's extent and distance, not |at - from| (a far `at`
+/// once pushed every shadow and reflection ray 20 units off a 2-unit scene).
+#[test]
+fn a_far_look_at_point_changes_nothing() {
+    let objects = vec![
+        Object {
+            shape: Shape::Sphere {
+                center: v(0.0, 0.0, 1.0),
+                radius: 1.0,
+            },
+            material: 1,
+        },
+        Object {
+            shape: Shape::Polygon {
+                vertices: vec![
+                    v(-3.0, -3.0, 0.0),
+                    v(3.0, -3.0, 0.0),
+                    v(3.0, 3.0, 0.0),
+                    v(-3.0, 3.0, 0.0),
+                ],
+            },
+            material: 0,
+        },
+    ];
+    let mirror = Material {
+        kr: DVec3::splat(0.5),
+        ..Material::default()
+    };
+    let light = Light {
+        position: v(4.0, -4.0, 8.0),
+        color: DVec3::ONE,
+        falloff: [1.0, 0.0, 0.0],
+    };
+    let frame_for = |at_distance: f64| {
+        let from = v(0.0, -8.0, 3.0);
+        let dir = (v(0.0, 0.0, 0.5) - from).normalize();
+        let cam = Camera {
+            from,
+            at: from + dir * at_distance,
+            up: DVec3::Z,
+            fov: 40.0,
+            width: 48,
+            height: 36,
+        };
+        let s = scene(
+            cam,
+            objects.clone(),
+            vec![Material::default(), mirror.clone()],
+            vec![light.clone()],
+        );
+        render(&pack::pack(&s, &Settings::default()).unwrap())
+    };
+    let near = frame_for(8.0);
+    let far = frame_for(1.0e6);
+    let worst = near
+        .pixels
+        .iter()
+        .zip(&far.pixels)
+        .flat_map(|(a, b)| (0..3).map(move |i| (a[i] - b[i]).abs()))
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-3, "largest difference {worst}");
+    assert_eq!(near.stats.shadow, far.stats.shadow);
+}

@@ -4,7 +4,6 @@ use super::options::{DepthOpts, SizeOpts};
 use super::Ui;
 use crate::error::user;
 use crate::files::{self, Dest, Output};
-use crate::scene;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
@@ -30,7 +29,7 @@ pub struct ExportArgs {
     pub depth: DepthOpts,
 }
 
-pub fn run(a: ExportArgs, _ui: Ui) -> Result<u8> {
+pub fn run(a: ExportArgs, ui: Ui) -> Result<u8> {
     files::check_outputs(
         &[Output {
             flag: "-o",
@@ -41,7 +40,7 @@ pub fn run(a: ExportArgs, _ui: Ui) -> Result<u8> {
         &[&a.scene],
     )
     .map_err(user)?;
-    let scene = scene::load(&a.scene).map_err(user)?;
+    let scene = super::load_scene(ui, &a.scene)?;
     let dest = Dest::new(&a.output);
     let base = a
         .preset

@@ -198,6 +198,15 @@ pub fn install_signal_handler() {
     });
 }
 
+/// Loads a scene with a progress bar (bytes read) that appears only when
+/// loading takes more than about a second, on a terminal.
+pub fn load_scene(ui: Ui, path: &std::path::Path) -> anyhow::Result<crate::scene::Scene> {
+    let bar = Bar::new(ui, "loading");
+    let r = crate::scene::load_with_progress(path, &|d, t| bar.set(d, t));
+    bar.finish();
+    r.map_err(crate::error::user)
+}
+
 /// A progress bar on stderr that appears only after about a second, only
 /// on a terminal, and never with -q.
 pub struct Bar {

@@ -6,7 +6,6 @@ use crate::error::user;
 use crate::files::{self, Dest, Output};
 use crate::output::{self, Encoding};
 use crate::run::{self, Backend, RenderOptions};
-use crate::scene;
 use anyhow::Result;
 use clap::Args;
 use std::io::IsTerminal;
@@ -80,7 +79,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
             "-o -: standard output is a terminal; redirect it to a file or a program"
         )));
     }
-    let scene = scene::load(&a.scene).map_err(user)?;
+    let scene = super::load_scene(ui, &a.scene)?;
     let t_load = t_start.elapsed().as_secs_f64();
     log::debug!("loaded {} in {t_load:.3} s", a.scene.display());
     let opts = RenderOptions {

@@ -8,7 +8,6 @@ use crate::files::{self, Dest, Output};
 use crate::gpu::Gpu;
 use crate::metrics::{self, Tolerance};
 use crate::run;
-use crate::scene;
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -50,7 +49,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
         });
     }
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
-    let scene = scene::load(&a.scene).map_err(user)?;
+    let scene = super::load_scene(ui, &a.scene)?;
     let bar = super::Bar::new(ui, "packing");
     let packed =
         run::pack_with_progress(&scene, &a.opts.settings(), a.opts.counting(), &|s, d, t| {

@@ -170,9 +170,11 @@ impl LoopLoad {
             if prim.kind() != KIND_POLYGON {
                 continue;
             }
-            let n = prim.b[0] as u32;
+            // The loop a test makes: every edge, or the longest edge band
+            // (pack::polygon).
+            let n = prim.b[3] as u32;
             if polygon.is_none_or(|(_, m, _)| n > m) {
-                polygon = Some((i as u32, n, polygon_centre(p, prim.data, n)));
+                polygon = Some((i as u32, n, polygon_centre(p, prim)));
             }
         }
         let cell_refs = p
@@ -286,10 +288,10 @@ impl LoopLoad {
     }
 }
 
-fn polygon_centre(p: &Packed, base: u32, n: u32) -> [f32; 3] {
+fn polygon_centre(p: &Packed, prim: &crate::pack::layout::Prim) -> [f32; 3] {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
-    for v in p.extra.iter().skip(base as usize).take(n as usize) {
+    for v in crate::pack::polygon::vertices_3d(prim, &p.extra) {
         for k in 0..3 {
             lo[k] = lo[k].min(v[k]);
             hi[k] = hi[k].max(v[k]);
@@ -374,18 +376,22 @@ pub fn certain_cut(p: &Packed) -> Option<CertainCut> {
                 (Driver::Samples(samples as u32), samples),
                 (Driver::Unbounded(unbounded as u32), unbounded),
             ];
-            if let Some((_, prim)) = hit {
+            if let Some((h, prim)) = hit {
                 parts.push((Driver::Lights(lights as u32), lights));
                 let pr = &p.prims[prim as usize];
                 if pr.kind() == KIND_POLYGON {
+                    // The edges this hit's test walks (all, or its band's).
+                    let at = ray.o + ray.d * h.t;
+                    let (_, i1) = crate::pack::polygon::axes(pr.b[1] as usize);
+                    let (lo, hi) = crate::trace::intersect::polygon_edges(pr, &p.extra, at.get(i1));
                     let n = pr.b[0] as u32;
                     parts.push((
                         Driver::Polygon {
                             prim,
                             vertices: n,
-                            centre: polygon_centre(p, pr.data, n),
+                            centre: polygon_centre(p, pr),
                         },
-                        n as u64,
+                        (hi - lo) as u64,
                     ));
                 }
             }
@@ -414,7 +420,7 @@ impl LoopLoad {
         p.prims
             .iter()
             .filter(|pr| pr.kind() == KIND_POLYGON)
-            .map(|pr| pr.b[0] as u32)
+            .map(|pr| pr.b[3] as u32)
             .max()
             .unwrap_or(0)
     }

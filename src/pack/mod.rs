@@ -5,6 +5,7 @@ pub mod bvh;
 pub mod grid;
 pub mod layout;
 pub mod pages;
+pub mod polygon;
 
 use crate::budget::{Budget, BudgetError, Need};
 use crate::constants::*;
@@ -423,18 +424,22 @@ impl Builder {
                 let vs: Vec<DVec3> = vertices.iter().map(|&p| self.rel(p)).collect();
                 let n = newell_normal(&vs).normalize();
                 let d = vs.iter().map(|p| n.dot(*p)).sum::<f64>() / vs.len() as f64;
+                let drop = drop_axis(n);
+                let convex = is_convex(&vs, n);
+                let (i0, i1) = polygon::axes(drop);
+                // The f32 the tracers read (docs/method.md, "Polygon").
+                let q: Vec<[f32; 2]> = vs.iter().map(|p| [p[i0] as f32, p[i1] as f32]).collect();
+                let packed = polygon::pack(&q, convex);
                 let data = self.extra.len() as u32;
-                for p in &vs {
-                    self.extra.push(v4(*p, 0.0));
-                }
+                self.extra.extend(packed.extra);
                 let b = [
                     vs.len() as f32,
-                    drop_axis(n) as f32,
-                    is_convex(&vs, n) as u32 as f32,
-                    0.0,
+                    drop as f32,
+                    convex as u32 as f32,
+                    packed.longest as f32,
                 ];
                 let bb = Self::points_bounds(&vs);
-                self.push_bounded(KIND_POLYGON, mat, data, [v4(n, d), b, [0.0; 4]], bb);
+                self.push_bounded(KIND_POLYGON, mat, data, [v4(n, d), b, packed.c], bb);
             }
             Shape::Triangle { vertices, normals } => {
                 self.triangle(mat, *vertices, normals.as_deref().copied());
@@ -684,7 +689,10 @@ pub fn census(scene: &Scene) -> (u64, u64, u64) {
             Shape::Polygon { vertices } => {
                 prims += 1;
                 if vertices.len() > 3 {
-                    extra += vertices.len() as u64;
+                    // Vertex pairs and edge bands (pack::polygon): at most
+                    // n/2 + 1 + (BANDS_MAX + 1 + 8n)/4 vec4s.
+                    let n = vertices.len() as u64;
+                    extra += n / 2 + 1 + (polygon::BANDS_MAX as u64 + 1) / 4 + 1 + 2 * n;
                 }
                 bytes += (vertices.capacity() * size_of::<DVec3>()) as u64;
             }
@@ -904,10 +912,28 @@ pub fn pack_with_progress(
     let up = right.cross(forward);
     let half_h = (cam.fov.to_radians() * 0.5).tan();
     let half_w = half_h * width as f64 / height as f64;
+    // The surface offset's scale: the scene's size, or how far from the
+    // camera (the origin of the packed coordinates) its farthest point
+    // lies, whichever is larger, since f32 hit points are as precise as
+    // their distance from the origin allows. Not where the camera looks:
+    // a far `at` behind a small scene would push every secondary ray off
+    // its surface.
     let scale = if finite.lo[0] > finite.hi[0] {
         (cam.at - cam.from).length()
     } else {
-        finite.diagonal().max((cam.at - cam.from).length())
+        let far = (0..8)
+            .map(|c| {
+                let pick = |i: usize| {
+                    if c >> i & 1 == 0 {
+                        finite.lo[i]
+                    } else {
+                        finite.hi[i]
+                    }
+                };
+                DVec3::new(pick(0), pick(1), pick(2)).length()
+            })
+            .fold(0.0f64, f64::max);
+        finite.diagonal().max(far)
     };
     let (nx, ny) = crate::trace::sample::strata(settings.spp);
     let sampling = match settings.sampling {

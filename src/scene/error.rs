@@ -8,10 +8,14 @@ use std::path::{Path, PathBuf};
 /// An error while reading, parsing or validating a scene.
 ///
 /// Displays as `FILE:LINE:COL: message`, or `FILE: message` when the error
-/// has no position (an I/O error, for instance).
+/// has no position (an I/O error, for instance). One pointer wide, so that
+/// the readers' `Result`s stay small on their hot paths.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{}: {}", Location(&self.file, self.line, self.column), self.message)]
-pub struct SceneError {
+#[error("{}: {}", Location(&self.0.file, self.0.line, self.0.column), self.0.message)]
+pub struct SceneError(Box<Inner>);
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Inner {
     file: PathBuf,
     line: Option<usize>,
     column: Option<usize>,
@@ -34,24 +38,20 @@ impl fmt::Display for Location<'_> {
 }
 
 impl SceneError {
-    /// The file could not be read. The message names the path and the reason.
+    /// The file could not be read. The message gives the reason; the path
+    /// is the location (`FILE: cannot read: REASON`), named once.
     pub fn io(path: &Path, err: &std::io::Error) -> Self {
-        SceneError {
-            file: path.to_path_buf(),
-            line: None,
-            column: None,
-            message: format!("cannot read {}: {}", path.display(), err),
-        }
+        Self::in_file(path, format!("cannot read: {err}"))
     }
 
     /// An error at a 1-based `line` and `column` of `path`.
     pub fn at(path: &Path, line: usize, column: usize, message: impl Into<String>) -> Self {
-        SceneError {
+        SceneError(Box::new(Inner {
             file: path.to_path_buf(),
             line: Some(line),
             column: Some(column),
             message: message.into(),
-        }
+        }))
     }
 
     /// An error at byte offset `byte_offset` of `text`, the contents of
@@ -69,32 +69,32 @@ impl SceneError {
 
     /// An error about the whole file, with no position.
     pub fn in_file(path: &Path, message: impl Into<String>) -> Self {
-        SceneError {
+        SceneError(Box::new(Inner {
             file: path.to_path_buf(),
             line: None,
             column: None,
             message: message.into(),
-        }
+        }))
     }
 
     /// The scene file the error is in.
     pub fn file(&self) -> &Path {
-        &self.file
+        &self.0.file
     }
 
     /// 1-based line, if known.
     pub fn line(&self) -> Option<usize> {
-        self.line
+        self.0.line
     }
 
     /// 1-based column in characters, if known.
     pub fn column(&self) -> Option<usize> {
-        self.column
+        self.0.column
     }
 
     /// The message without the location.
     pub fn message(&self) -> &str {
-        &self.message
+        &self.0.message
     }
 }
 
@@ -138,7 +138,7 @@ mod tests {
     fn display_without_position() {
         let io = std::io::Error::new(std::io::ErrorKind::NotFound, "gone");
         let e = SceneError::io(Path::new("a/b.toml"), &io);
-        assert_eq!(e.to_string(), "a/b.toml: cannot read a/b.toml: gone");
+        assert_eq!(e.to_string(), "a/b.toml: cannot read: gone");
         assert_eq!(e.line(), None);
         assert_eq!(e.column(), None);
     }

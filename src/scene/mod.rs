@@ -15,6 +15,9 @@ mod toml_format;
 mod validate;
 
 pub use error::SceneError;
+/// The numeric limits of scene values (`docs/scene-format.md`, "Valid
+/// values" and "f32 limits").
+pub use validate::{MAX_EXPONENT, MAX_FACTOR, MAX_MAGNITUDE, MIN_MAGNITUDE, MIN_SIZE_REL};
 
 /// Camera. `fov` is the vertical field of view, edge to edge, in degrees.
 #[derive(Clone, Debug, PartialEq)]
@@ -151,18 +154,94 @@ pub struct Scene {
 
 /// Reads a scene file: `.nff` is NFF, anything else is the native TOML format.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, &e))?;
-    parse_str(&text, path)
+    load_with_progress(path, &|_, _| {})
+}
+
+/// [`load`], calling `progress(done, total)` now and then (about every
+/// MiB of text) while the readers work, so that a caller can show a bar
+/// for a slow input. Both are byte counts: of the scene file, plus, for a
+/// TOML scene, of the `.obj` files it names (`total` grows to include them
+/// once the TOML text is parsed; the TOML parse itself reports nothing in
+/// between). The last call has `done == total`.
+pub fn load_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Scene, SceneError> {
+    let text = read_text(path).map_err(|e| e.into_scene_error(path))?;
+    parse_with_progress(&text, path, progress)
 }
 
 /// Parses scene text as if it came from `path` (the extension picks the format).
 pub fn parse_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    parse_with_progress(text, path, &|_, _| {})
+}
+
+fn parse_with_progress(
+    text: &str,
+    path: &Path,
+    progress: &dyn Fn(u64, u64),
+) -> Result<Scene, SceneError> {
     let is_nff = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("nff"));
     if is_nff {
-        nff::parse(text, path)
+        nff::parse(text, path, progress)
     } else {
-        toml_format::parse(text, path)
+        toml_format::parse(text, path, progress)
     }
+}
+
+/// Checks a scene built in code against the scene-wide f32 limits the
+/// readers apply after parsing (`docs/scene-format.md`, "f32 limits"). The
+/// error has no position: it names the object or light by its index.
+pub fn check_f32_limits(scene: &Scene) -> Result<(), SceneError> {
+    validate::scene_limits(scene).map_err(|f| {
+        let site = match f.site {
+            validate::Site::CameraAt | validate::Site::CameraFov => "camera".to_string(),
+            validate::Site::Light(i) => format!("light {i}"),
+            validate::Site::Object(i, _) => format!("object {i}"),
+        };
+        SceneError::in_file(&scene.source, format!("{site}: {}", f.message))
+    })
+}
+
+/// Why a text file could not be read.
+pub(crate) enum ReadError {
+    Io(std::io::Error),
+    /// Not UTF-8: where the first bad byte is (1-based), and the byte.
+    Utf8 {
+        line: usize,
+        column: usize,
+        byte: u8,
+    },
+}
+
+impl ReadError {
+    /// As an error in the scene file `path`.
+    fn into_scene_error(self, path: &Path) -> SceneError {
+        match self {
+            ReadError::Io(e) => SceneError::io(path, &e),
+            ReadError::Utf8 { line, column, byte } => {
+                SceneError::at(path, line, column, utf8_message(byte))
+            }
+        }
+    }
+}
+
+pub(crate) fn utf8_message(byte: u8) -> String {
+    format!("not UTF-8 text: invalid byte 0x{byte:02x}")
+}
+
+/// Reads a whole text file; invalid UTF-8 is reported at its position.
+pub(crate) fn read_text(path: &Path) -> Result<String, ReadError> {
+    let bytes = std::fs::read(path).map_err(ReadError::Io)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let offset = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        // Valid by definition: the bytes before `valid_up_to`.
+        let before = std::str::from_utf8(&bytes[..offset]).unwrap_or_default();
+        let (line, column) = error::line_col(before, offset);
+        ReadError::Utf8 {
+            line,
+            column,
+            byte: bytes[offset],
+        }
+    })
 }

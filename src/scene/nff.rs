@@ -2,10 +2,11 @@
 //! tokens are separated by any whitespace, newlines mean nothing (a `c`
 //! entity on one line or on three reads the same), `#` starts a comment
 //! that runs to the end of the line. Conventions are in
-//! `docs/scene-format.md`.
+//! `docs/scene-format.md`. Every value is checked through the table in
+//! `validate.rs`, the same rows as the TOML reader's.
 
 use super::error::SceneError;
-use super::validate::{self, CameraFault};
+use super::validate::{self as v, CameraFault, Part, Quantity, Site};
 use super::{Camera, Light, Material, Object, Scene, Shape};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -13,6 +14,9 @@ use std::path::Path;
 
 /// Image size when there is no `resolution`.
 pub(crate) const DEFAULT_RESOLUTION: u32 = 512;
+
+/// Bytes of text between two progress reports.
+const PROGRESS_STEP: usize = 1 << 20;
 
 const VIEW_KEYWORDS: &[&str] = &["from", "at", "up", "angle", "hither", "resolution"];
 
@@ -24,7 +28,10 @@ struct Tok<'a> {
 
 /// The token that starts at or after byte `*off` of `text`; moves `*off`
 /// past it. Tokens are read one at a time: an array of them would hold 14
-/// M tokens (336 MB) for an NFF of 1 M spheres.
+/// M tokens (336 MB) for an NFF of 1 M spheres. Inlined: a token returned
+/// through memory and read back whole stalls the store buffer, on every
+/// token.
+#[inline(always)]
 fn scan<'a>(text: &'a str, off: &mut usize) -> Option<Tok<'a>> {
     let bytes = text.as_bytes();
     let mut i = *off;
@@ -64,6 +71,20 @@ fn scan<'a>(text: &'a str, off: &mut usize) -> Option<Tok<'a>> {
         s: &text[s..],
         off: s,
     })
+}
+
+/// The token `n` tokens after `tok` (`tok` itself for 0), or `tok` if the
+/// text ends first.
+fn nth_after<'a>(text: &'a str, tok: Tok<'a>, n: usize) -> Tok<'a> {
+    let mut off = tok.off;
+    let mut t = tok;
+    for _ in 0..=n {
+        match scan(text, &mut off) {
+            Some(x) => t = x,
+            None => return tok,
+        }
+    }
+    t
 }
 
 fn parse_number(s: &str) -> Option<f64> {
@@ -132,6 +153,7 @@ impl<'a> Parser<'a> {
 
     /// The next token; at the end of the file, an error at the last token.
     /// `expected` describes it, formatted only for an error.
+    #[inline(always)]
     fn next(&mut self, entity: &str, expected: &dyn Fn() -> String) -> Result<Tok<'a>, SceneError> {
         match self.peek() {
             Some(t) => {
@@ -151,77 +173,160 @@ impl<'a> Parser<'a> {
         }
     }
 
-    fn num(&mut self, entity: &str, expected: &str) -> Result<(f64, Tok<'a>), SceneError> {
-        self.num_of(entity, &|| expected.to_string())
+    /// The token the last successful [`Parser::next`] took.
+    fn taken(&self) -> Tok<'a> {
+        self.last.unwrap_or(Tok {
+            s: "",
+            off: self.text.len(),
+        })
     }
 
-    /// `num` with a description formatted only for an error (a 1 M-sphere
-    /// file reads 4 M numbers).
+    /// The next token as a number, unchecked (NaN and infinities too);
+    /// [`Parser::taken`] is its token. `expected` describes it, formatted
+    /// only for an error (a 1 M-sphere file reads 11 M numbers). The hot
+    /// calls return just the number: a `Result<f64, SceneError>` travels in
+    /// registers, a token with it did not (a store-forwarding stall cost
+    /// the NFF reader 5%).
+    #[inline(always)]
+    fn raw_num(&mut self, entity: &str, expected: &dyn Fn() -> String) -> Result<f64, SceneError> {
+        let t = self.next(entity, expected)?;
+        match parse_number(t.s) {
+            Some(x) => Ok(x),
+            None => Err(self.err(
+                t,
+                format!(
+                    "expected {} (a number) in `{entity}` entity, found `{}`",
+                    expected(),
+                    t.s
+                ),
+            )),
+        }
+    }
+
+    /// The next number, checked as quantity `q`.
     fn num_of(
         &mut self,
         entity: &str,
         expected: &dyn Fn() -> String,
-    ) -> Result<(f64, Tok<'a>), SceneError> {
-        let t = self.next(entity, expected)?;
-        let Some(x) = parse_number(t.s) else {
-            let expected = expected();
-            return Err(self.err(
-                t,
-                format!(
-                    "expected {expected} (a number) in `{entity}` entity, found `{}`",
-                    t.s
-                ),
-            ));
-        };
-        if !x.is_finite() {
-            return Err(self.err(
-                t,
-                format!(
-                    "{} in `{entity}` entity must be a finite number, got `{}`",
-                    expected(),
-                    t.s
-                ),
-            ));
+        q: &Quantity,
+    ) -> Result<f64, SceneError> {
+        let x = self.raw_num(entity, expected)?;
+        if q.accepts(x) {
+            Ok(x)
+        } else {
+            Err(self.rejected(self.taken(), x, q))
         }
-        Ok((x, t))
     }
 
-    fn vec3(&mut self, entity: &str, what: &str) -> Result<(DVec3, Tok<'a>), SceneError> {
-        self.vec3_of(entity, &|| what.to_string())
+    /// `x`, read from `t`, checked as `q`.
+    #[inline]
+    fn checked(&self, t: Tok, x: f64, q: &Quantity) -> Result<f64, SceneError> {
+        if q.accepts(x) {
+            Ok(x)
+        } else {
+            Err(self.rejected(t, x, q))
+        }
     }
 
+    /// The error for `x`, read from `t`, out of `q`'s range; a literal
+    /// beyond f64 (`1e400`, read as an infinity) is out of range.
+    #[cold]
+    #[inline(never)]
+    fn rejected(&self, t: Tok, x: f64, q: &Quantity) -> SceneError {
+        let beyond = x
+            .is_infinite()
+            .then(|| v::beyond_f64(q.name, t.s))
+            .flatten();
+        self.err(t, beyond.unwrap_or_else(|| q.rejection(x)))
+    }
+
+    fn num(&mut self, entity: &str, expected: &str, q: &Quantity) -> Result<f64, SceneError> {
+        self.num_of(entity, &|| expected.to_string(), q)
+    }
+
+    /// Three numbers, each checked as `q`, and the vector as a whole if `q`
+    /// is a direction. `what` names the vector in syntax errors; the
+    /// components are `x y z` or, with `rgb`, `red green blue`.
     fn vec3_of(
         &mut self,
         entity: &str,
         what: &dyn Fn() -> String,
+        q: &Quantity,
+        rgb: bool,
     ) -> Result<(DVec3, Tok<'a>), SceneError> {
-        let (x, t) = self.num_of(entity, &|| format!("{} x", what()))?;
-        let (y, _) = self.num_of(entity, &|| format!("{} y", what()))?;
-        let (z, _) = self.num_of(entity, &|| format!("{} z", what()))?;
-        Ok((DVec3::new(x, y, z), t))
+        let names = if rgb {
+            ["red", "green", "blue"]
+        } else {
+            ["x", "y", "z"]
+        };
+        let x = self.num_of(entity, &|| format!("{} {}", what(), names[0]), q)?;
+        let t = self.taken();
+        let y = self.num_of(entity, &|| format!("{} {}", what(), names[1]), q)?;
+        let z = self.num_of(entity, &|| format!("{} {}", what(), names[2]), q)?;
+        let v = DVec3::new(x, y, z);
+        if q.range == v::Range::Direction {
+            q.check3(v).map_err(|(_, m)| self.err(t, m))?;
+        }
+        Ok((v, t))
     }
 
-    fn color(&mut self, entity: &str, what: &str) -> Result<(DVec3, Tok<'a>), SceneError> {
-        let (r, t) = self.num_of(entity, &|| format!("{what} red"))?;
-        let (g, _) = self.num_of(entity, &|| format!("{what} green"))?;
-        let (b, _) = self.num_of(entity, &|| format!("{what} blue"))?;
-        Ok((DVec3::new(r, g, b), t))
+    fn vec3(
+        &mut self,
+        entity: &str,
+        what: &str,
+        q: &Quantity,
+    ) -> Result<(DVec3, Tok<'a>), SceneError> {
+        self.vec3_of(entity, &|| what.to_string(), q, false)
     }
 
-    fn integer(&mut self, entity: &str, expected: &str) -> Result<(i64, Tok<'a>), SceneError> {
-        let (x, t) = self.num(entity, expected)?;
-        if x.fract() != 0.0 || x.abs() > 1e15 {
+    fn color(
+        &mut self,
+        entity: &str,
+        what: &str,
+        q: &Quantity,
+    ) -> Result<(DVec3, Tok<'a>), SceneError> {
+        self.vec3_of(entity, &|| what.to_string(), q, true)
+    }
+
+    /// An integer: `None` when it is an integer beyond i64 (the caller's
+    /// range check quotes the token). Integral floats (`2.0`, `1e3`) count.
+    fn integer(
+        &mut self,
+        entity: &str,
+        expected: &str,
+    ) -> Result<(Option<i64>, Tok<'a>), SceneError> {
+        let x = self.raw_num(entity, &|| expected.to_string())?;
+        let t = self.taken();
+        if let Ok(n) = t.s.parse::<i64>() {
+            return Ok((Some(n), t));
+        }
+        if !x.is_finite() || x.fract() != 0.0 {
             return Err(self.err(t, format!("{expected} must be an integer, got `{}`", t.s)));
         }
-        Ok((x as i64, t))
+        // |x| < 2^63 converts exactly; beyond, it is out of i64's range.
+        Ok(((x.abs() < 9.2e18).then_some(x as i64), t))
     }
 
+    /// The vertex count of `p` or `pp`: 3 ..= `MAX_POLYGON_VERTICES`. (A
+    /// count the rest of the file cannot fill ends in a truncated entity:
+    /// the vertices are read one by one, into a vector that grows with
+    /// what is there.)
     fn count(&mut self, entity: &str) -> Result<(usize, Tok<'a>), SceneError> {
         let (n, t) = self.integer(entity, "the vertex count")?;
-        if n < 3 {
-            return Err(self.err(t, format!("`{entity}` needs at least 3 vertices, got {n}")));
+        match n {
+            Some(n) if n < 3 => {
+                Err(self.err(t, format!("`{entity}` needs at least 3 vertices, got {n}")))
+            }
+            Some(n) if n as u64 <= v::MAX_POLYGON_VERTICES as u64 => Ok((n as usize, t)),
+            _ => Err(self.err(
+                t,
+                format!(
+                    "`{entity}` vertex count {} is out of range: a polygon has 3 ..= {} vertices",
+                    t.s,
+                    v::MAX_POLYGON_VERTICES
+                ),
+            )),
         }
-        Ok((n as usize, t))
     }
 
     fn view(&mut self, v_tok: Tok<'a>) -> Result<View<'a>, SceneError> {
@@ -232,18 +337,21 @@ impl<'a> Parser<'a> {
             }
             self.advance();
             match t.s {
-                "from" => view.from = Some(self.vec3("from", "eye point")?),
-                "at" => view.at = Some(self.vec3("at", "look-at point")?),
-                "up" => view.up = Some(self.vec3("up", "up vector")?),
-                "angle" => view.angle = Some(self.num("angle", "the field of view in degrees")?),
+                "from" => view.from = Some(self.vec3("from", "eye point", &v::FROM)?),
+                "at" => view.at = Some(self.vec3("at", "look-at point", &v::AT)?),
+                "up" => view.up = Some(self.vec3("up", "up vector", &v::UP)?),
+                "angle" => {
+                    let fov = self.num("angle", "the field of view in degrees", &v::FOV)?;
+                    view.angle = Some((fov, self.taken()));
+                }
                 "hither" => {
-                    self.num("hither", "the hither distance")?;
+                    self.num("hither", "the hither distance", &v::HITHER)?;
                 }
                 "resolution" => {
                     let (w, tw) = self.integer("resolution", "the width")?;
                     let (h, th) = self.integer("resolution", "the height")?;
-                    let w = self.check(tw, validate::image_size(w, "width"))?;
-                    let h = self.check(th, validate::image_size(h, "height"))?;
+                    let w = self.check(tw, v::WIDTH.check(w, tw.s))?;
+                    let h = self.check(th, v::HEIGHT.check(h, th.s))?;
                     view.resolution = Some((w, h));
                 }
                 _ => unreachable!(),
@@ -263,8 +371,78 @@ impl<'a> Parser<'a> {
     }
 }
 
-/// Parses an NFF scene.
-pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+/// What a pass over the text gives: the scene, or (when asked to locate a
+/// light or an object) the keyword of the entity that made it.
+enum Outcome<'a> {
+    /// The scene, the `at` and `angle` tokens (for camera faults), and
+    /// how many objects (those before the `v` block) are still to be
+    /// checked against the f32 limits.
+    Scene {
+        scene: Box<Scene>,
+        at: Tok<'a>,
+        fov: Tok<'a>,
+        unchecked: usize,
+    },
+    Located(Tok<'a>),
+}
+
+/// Parses an NFF scene, calling `progress(bytes done, bytes in all)` every
+/// [`PROGRESS_STEP`] bytes.
+pub(super) fn parse(
+    text: &str,
+    path: &Path,
+    progress: &dyn Fn(u64, u64),
+) -> Result<Scene, SceneError> {
+    let Outcome::Scene {
+        scene,
+        at,
+        fov,
+        unchecked,
+    } = pass(text, path, progress, None)?
+    else {
+        unreachable!("nothing to locate")
+    };
+    if let Err(f) = v::scene_limits_but_objects(&scene, unchecked) {
+        // Errors are rare: find the offending entity by reading the text
+        // again, rather than keeping a position for every object.
+        let tok = match f.site {
+            Site::CameraAt => at,
+            Site::CameraFov => fov,
+            site => match pass(text, path, &|_, _| {}, Some(site))? {
+                Outcome::Located(t) => value_token(text, t, site),
+                Outcome::Scene { .. } => unreachable!("the site is in the scene"),
+            },
+        };
+        return Err(SceneError::at_offset(path, text, tok.off, f.message));
+    }
+    Ok(*scene)
+}
+
+/// The token of the value `site` names, given its entity's keyword.
+fn value_token<'a>(text: &'a str, entity: Tok<'a>, site: Site) -> Tok<'a> {
+    let n = match (entity.s, site) {
+        ("l", _) => 1,
+        ("s", Site::Object(_, Part::Point(_))) => 1,
+        ("s", Site::Object(_, Part::Size)) => 4,
+        ("c", Site::Object(_, Part::Size)) => 4,
+        ("c", Site::Object(_, Part::Point(0))) => 1,
+        ("c", Site::Object(_, Part::Point(_))) => 5,
+        ("p", Site::Object(_, Part::Point(k))) => 2 + 3 * k,
+        _ => 0,
+    };
+    nth_after(text, entity, n)
+}
+
+/// One pass over the text. With `locate`, stops at the entity that makes
+/// that light or object.
+fn pass<'a>(
+    text: &'a str,
+    path: &'a Path,
+    progress: &dyn Fn(u64, u64),
+    locate: Option<Site>,
+) -> Result<Outcome<'a>, SceneError> {
+    let total = text.len() as u64;
+    let mut next_report = 0;
     let mut p = Parser::new(text, path);
     let mut view: Option<View> = None;
     let mut background = DVec3::ZERO;
@@ -273,32 +451,52 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let mut material_index: HashMap<[u64; 8], u32> = HashMap::new();
     let mut current = 0u32;
     let mut objects = Vec::new();
+    // Objects are checked against the f32 limits as they are made, once
+    // the camera is known (most files start with `v`); `unchecked` came
+    // before it and are left to the caller.
+    let mut origin: Option<DVec3> = None;
+    let (mut unchecked, mut checked) = (0, 0);
+    let (find_light, find_object) = match locate {
+        Some(Site::Light(i)) => (i, usize::MAX),
+        Some(Site::Object(i, _)) => (usize::MAX, i),
+        _ => (usize::MAX, usize::MAX),
+    };
 
     while let Some(t) = p.peek() {
+        if t.off >= next_report {
+            progress(t.off as u64, total);
+            next_report = t.off + PROGRESS_STEP;
+        }
         p.advance();
         match t.s {
             "v" => {
                 if view.is_some() {
                     return Err(p.err(t, "a second `v` (viewpoint) block"));
                 }
-                view = Some(p.view(t)?);
+                let parsed = p.view(t)?;
+                origin = parsed.from.map(|(from, _)| from);
+                (unchecked, checked) = (objects.len(), objects.len());
+                view = Some(parsed);
             }
-            "b" => background = p.color("b", "background")?.0,
+            "b" => background = p.color("b", "background", &v::BACKGROUND)?.0,
             "l" => {
-                let (pos, _) = p.vec3("l", "light position")?;
+                let (pos, _) = p.vec3("l", "light position", &v::LIGHT_POSITION)?;
                 let color = match p.peek() {
-                    Some(n) if parse_number(n.s).is_some() => Some(p.color("l", "light colour")?.0),
+                    Some(n) if parse_number(n.s).is_some() => {
+                        Some(p.color("l", "light colour", &v::LIGHT_COLOR)?.0)
+                    }
                     _ => None,
                 };
                 lights.push((pos, color));
             }
             "f" => {
-                let (c, _) = p.color("f", "colour")?;
-                let (kd, _) = p.num("f", "Kd")?;
-                let (ks, _) = p.num("f", "Ks")?;
-                let (shine, _) = p.num("f", "Shine")?;
-                let (transmittance, _) = p.num("f", "T")?;
-                let (ior, ior_tok) = p.num("f", "index of refraction")?;
+                let (c, _) = p.color("f", "colour", &v::COLOR)?;
+                let kd = p.num("f", "Kd", &v::KD)?;
+                let ks = p.num("f", "Ks", &v::NFF_KS)?;
+                let shine = p.num("f", "Shine", &v::SHINE)?;
+                let transmittance = p.num("f", "T", &v::KT)?;
+                let ior = p.raw_num("f", &|| "index of refraction".into())?;
+                let ior_tok = p.taken();
                 // The SPD writes ior 0 for opaque surfaces, where it means
                 // nothing: read it as 1. A transparent one needs a real ior.
                 let ior = if transmittance == 0.0 && ior == 0.0 {
@@ -306,7 +504,7 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 } else {
                     ior
                 };
-                p.check(ior_tok, validate::ior(ior))?;
+                p.checked(ior_tok, ior, &v::IOR)?;
                 let key = [c.x, c.y, c.z, kd, ks, shine, transmittance, ior].map(f64::to_bits);
                 current = *material_index.entry(key).or_insert_with(|| {
                     materials.push(Material {
@@ -326,11 +524,11 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 });
             }
             "c" => {
-                let (base, _) = p.vec3("c", "base")?;
-                let (r0, _) = p.num("c", "base radius")?;
-                let (apex, _) = p.vec3("c", "apex")?;
-                let (r1, _) = p.num("c", "apex radius")?;
-                p.check(t, validate::cone(base, r0, apex, r1))?;
+                let (base, _) = p.vec3("c", "base", &v::BASE)?;
+                let r0 = p.num("c", "base radius", &v::BASE_RADIUS)?;
+                let (apex, _) = p.vec3("c", "apex", &v::APEX)?;
+                let r1 = p.num("c", "apex radius", &v::APEX_RADIUS)?;
+                p.check(t, v::cone(base, r0, apex, r1))?;
                 objects.push(Object {
                     shape: Shape::Cone {
                         base,
@@ -342,9 +540,8 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 });
             }
             "s" => {
-                let (center, _) = p.vec3("s", "centre")?;
-                let (radius, rt) = p.num("s", "radius")?;
-                p.check(rt, validate::sphere_radius(radius))?;
+                let (center, _) = p.vec3("s", "centre", &v::CENTER)?;
+                let radius = p.num("s", "radius", &v::RADIUS)?;
                 objects.push(Object {
                     shape: Shape::Sphere { center, radius },
                     material: current,
@@ -355,11 +552,16 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 let mut vertices = Vec::with_capacity(n.min(1024));
                 let mut toks = Vec::with_capacity(n.min(1024));
                 for i in 0..n {
-                    let (v, vt) = p.vec3_of("p", &|| format!("vertex {} of {n}", i + 1))?;
-                    vertices.push(v);
+                    let (vx, vt) = p.vec3_of(
+                        "p",
+                        &|| format!("vertex {} of {n}", i + 1),
+                        &v::VERTEX,
+                        false,
+                    )?;
+                    vertices.push(vx);
                     toks.push(vt);
                 }
-                if let Err(e) = validate::polygon(&vertices) {
+                if let Err(e) = v::polygon(&vertices) {
                     return Err(p.err(e.index.map_or(t, |i| toks[i]), e.message));
                 }
                 objects.push(Object {
@@ -373,20 +575,29 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 let mut normals = Vec::with_capacity(n.min(1024));
                 let mut toks = Vec::with_capacity(n.min(1024));
                 for i in 0..n {
-                    let (v, vt) = p.vec3_of("pp", &|| format!("vertex {} of {n}", i + 1))?;
-                    let (nv, nt) = p.vec3_of("pp", &|| format!("normal {} of {n}", i + 1))?;
-                    p.check(nt, validate::nonzero_vector(nv, "a vertex normal"))?;
-                    vertices.push(v);
+                    let (vx, vt) = p.vec3_of(
+                        "pp",
+                        &|| format!("vertex {} of {n}", i + 1),
+                        &v::VERTEX,
+                        false,
+                    )?;
+                    let (nv, _) = p.vec3_of(
+                        "pp",
+                        &|| format!("normal {} of {n}", i + 1),
+                        &v::VERTEX_NORMAL,
+                        false,
+                    )?;
+                    vertices.push(vx);
                     normals.push(nv);
                     toks.push(vt);
                 }
-                if let Err(e) = validate::polygon(&vertices) {
+                if let Err(e) = v::polygon(&vertices) {
                     return Err(p.err(e.index.map_or(t, |i| toks[i]), e.message));
                 }
                 // A fan; zero-area slivers of a valid polygon are skipped.
                 for i in 1..n - 1 {
                     let tri = [vertices[0], vertices[i], vertices[i + 1]];
-                    if validate::triangle_is_degenerate(&tri) {
+                    if v::triangle_is_degenerate(&tri) {
                         continue;
                     }
                     objects.push(Object {
@@ -408,7 +619,20 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 ));
             }
         }
+        if objects.len() > find_object || lights.len() > find_light {
+            return Ok(Outcome::Located(t));
+        }
+        if let Some(origin) = origin {
+            while checked < objects.len() {
+                if let Err((part, m)) = v::object_limits(&objects[checked].shape, origin) {
+                    let site = Site::Object(checked, part);
+                    return Err(p.err(value_token(text, t, site), m));
+                }
+                checked += 1;
+            }
+        }
     }
+    progress(total, total);
 
     let Some(view) = view else {
         return Err(SceneError::in_file(path, "no `v` (viewpoint) block"));
@@ -417,20 +641,19 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let (at, at_tok) = view.at.expect("checked in view()");
     let (up, up_tok) = view.up.expect("checked in view()");
     let (fov, fov_tok) = view.angle.expect("checked in view()");
-    if let Err((fault, msg)) = validate::camera(from, at, up) {
+    if let Err((fault, msg)) = v::camera(from, at, up) {
         let tok = match fault {
             CameraFault::At => at_tok,
             CameraFault::Up => up_tok,
         };
         return Err(p.err(tok, msg));
     }
-    p.check(fov_tok, validate::fov(fov))?;
     let (width, height) = view
         .resolution
         .unwrap_or((DEFAULT_RESOLUTION, DEFAULT_RESOLUTION));
 
     let grey = DVec3::splat(light_intensity(lights.len()));
-    Ok(Scene {
+    let scene = Scene {
         camera: Camera {
             from,
             at,
@@ -452,6 +675,12 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         materials,
         objects,
         source: path.to_path_buf(),
+    };
+    Ok(Outcome::Scene {
+        scene: Box::new(scene),
+        at: at_tok,
+        fov: fov_tok,
+        unchecked,
     })
 }
 
@@ -463,11 +692,11 @@ mod tests {
         "v\nfrom 0 -10 2\nat 0 0 0\nup 0 0 1\nangle 40\nhither 1\nresolution 320 240\n";
 
     fn parse_ok(text: &str) -> Scene {
-        parse(text, Path::new("t.nff")).unwrap_or_else(|e| panic!("{e}"))
+        parse(text, Path::new("t.nff"), &|_, _| {}).unwrap_or_else(|e| panic!("{e}"))
     }
 
     fn parse_err(text: &str) -> (usize, usize, String) {
-        let e = parse(text, Path::new("t.nff")).expect_err("should fail");
+        let e = parse(text, Path::new("t.nff"), &|_, _| {}).expect_err("should fail");
         (
             e.line().unwrap(),
             e.column().unwrap(),
@@ -517,7 +746,7 @@ mod tests {
     fn missing_view_items() {
         let (l, c, m) = parse_err("v\nfrom 0 0 1\nat 0 0 0\nangle 30\n");
         assert_eq!((l, c, m.as_str()), (1, 1, "the `v` block has no `up`"));
-        let e = parse("s 0 0 0 1\n", Path::new("t.nff")).unwrap_err();
+        let e = parse("s 0 0 0 1\n", Path::new("t.nff"), &|_, _| {}).unwrap_err();
         assert_eq!(e.to_string(), "t.nff: no `v` (viewpoint) block");
         let (l, c, m) = parse_err(&format!("{VIEW}s 0 0 0 1\nangle 3\n"));
         assert_eq!((l, c), (9, 1));
@@ -553,7 +782,7 @@ mod tests {
 
     #[test]
     fn empty_file_is_truncation_free_but_needs_view() {
-        let e = parse("# only a comment\n", Path::new("t.nff")).unwrap_err();
+        let e = parse("# only a comment\n", Path::new("t.nff"), &|_, _| {}).unwrap_err();
         assert_eq!(e.line(), None);
         let (l, c, m) = parse_err("v from 0 0");
         assert_eq!((l, c), (1, 10));

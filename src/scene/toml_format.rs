@@ -4,7 +4,7 @@
 //! `docs/scene-format.md`.
 
 use super::error::SceneError;
-use super::validate::{self, CameraFault};
+use super::validate::{self as v, CameraFault, Fault, Part, Quantity, Site};
 use super::{obj, Camera, Light, Material, Mesh, Object, Scene, Shape};
 use glam::DVec3;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
@@ -12,7 +12,7 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use toml::Spanned;
 
 /// Defaults of the native format (documented in `docs/scene-format.md`).
@@ -233,33 +233,47 @@ impl Ctx<'_> {
         r.map_err(|m| self.err(span, m))
     }
 
-    fn num(&self, n: &Num, what: &str) -> Result<f64, SceneError> {
-        self.check(n.span(), validate::finite(*n.get_ref(), what))
+    fn num(&self, n: &Num, q: &Quantity) -> Result<f64, SceneError> {
+        let x = *n.get_ref();
+        if x.is_infinite() {
+            // toml reads some literals beyond f64 (`-1_0e400`) as infinities
+            let written = self.text.get(n.span()).unwrap_or("");
+            if let Some(m) = v::beyond_f64(q.name, written) {
+                return Err(self.err(n.span(), m));
+            }
+        }
+        self.check(n.span(), q.check(x))
     }
 
-    fn opt_num(&self, n: &Option<Num>, what: &str, default: f64) -> Result<f64, SceneError> {
-        n.as_ref().map_or(Ok(default), |n| self.num(n, what))
+    fn opt_num(&self, n: &Option<Num>, q: &Quantity, default: f64) -> Result<f64, SceneError> {
+        n.as_ref().map_or(Ok(default), |n| self.num(n, q))
     }
 
-    /// Exactly three numbers.
-    fn vec3(&self, v: &Vector, what: &str) -> Result<DVec3, SceneError> {
+    /// Exactly three numbers, each checked as `q` (at its own span), and
+    /// the vector as a whole if `q` is a direction.
+    fn vec3(&self, v: &Vector, q: &Quantity) -> Result<DVec3, SceneError> {
+        let name = q.name;
         match v.get_ref() {
             NumOrList::Num(_) => Err(self.err(
                 v.span(),
-                format!("{what} must be an array of 3 numbers, got a single number"),
+                format!("{name} must be an array of 3 numbers, got a single number"),
             )),
             NumOrList::List(xs) => {
                 if xs.len() != 3 {
                     return Err(self.err(
                         v.span(),
-                        format!("{what} must have 3 components, got {}", xs.len()),
+                        format!("{name} must have 3 components, got {}", xs.len()),
                     ));
                 }
                 let mut out = [0.0; 3];
                 for (o, x) in out.iter_mut().zip(xs) {
-                    *o = self.num(x, what)?;
+                    *o = self.num(x, q)?;
                 }
-                Ok(DVec3::from_array(out))
+                let out = DVec3::from_array(out);
+                if q.range == v::Range::Direction {
+                    q.check3(out).map_err(|(_, m)| self.err(v.span(), m))?;
+                }
+                Ok(out)
             }
         }
     }
@@ -267,134 +281,106 @@ impl Ctx<'_> {
     fn opt_vec3(
         &self,
         v: &Option<Vector>,
-        what: &str,
+        q: &Quantity,
         default: DVec3,
     ) -> Result<DVec3, SceneError> {
-        v.as_ref().map_or(Ok(default), |v| self.vec3(v, what))
+        v.as_ref().map_or(Ok(default), |v| self.vec3(v, q))
     }
 
     /// Three numbers, or one number meaning all three (a grey).
-    fn color(&self, v: &Vector, what: &str) -> Result<DVec3, SceneError> {
+    fn color(&self, v: &Vector, q: &Quantity) -> Result<DVec3, SceneError> {
         match v.get_ref() {
-            NumOrList::Num(x) => Ok(DVec3::splat(
-                self.check(v.span(), validate::finite(*x, what))?,
-            )),
-            NumOrList::List(_) => self.vec3(v, what),
+            NumOrList::Num(x) => Ok(DVec3::splat(self.check(v.span(), q.check(*x))?)),
+            NumOrList::List(_) => self.vec3(v, q),
         }
     }
 
     fn opt_color(
         &self,
         v: &Option<Vector>,
-        what: &str,
+        q: &Quantity,
         default: DVec3,
     ) -> Result<DVec3, SceneError> {
-        v.as_ref().map_or(Ok(default), |v| self.color(v, what))
+        v.as_ref().map_or(Ok(default), |v| self.color(v, q))
     }
 
-    fn non_negative_color(
-        &self,
-        v: &Option<Vector>,
-        what: &str,
-        default: DVec3,
-    ) -> Result<DVec3, SceneError> {
-        let c = self.opt_color(v, what, default)?;
-        if let Some(v) = v {
-            self.check(v.span(), validate::non_negative3(c, what))?;
-        }
-        Ok(c)
-    }
-
-    fn non_negative_num(
-        &self,
-        n: &Option<Num>,
-        what: &str,
-        default: f64,
-    ) -> Result<f64, SceneError> {
-        let x = self.opt_num(n, what, default)?;
-        if let Some(n) = n {
-            self.check(n.span(), validate::non_negative(x, what))?;
-        }
-        Ok(x)
-    }
-
-    fn points(&self, v: &Spanned<Vec<Vector>>, what: &str) -> Result<Vec<DVec3>, SceneError> {
-        v.get_ref().iter().map(|p| self.vec3(p, what)).collect()
+    fn points(&self, v: &Spanned<Vec<Vector>>, q: &Quantity) -> Result<Vec<DVec3>, SceneError> {
+        v.get_ref().iter().map(|p| self.vec3(p, q)).collect()
     }
 
     fn camera(&self, c: &CameraIn) -> Result<Camera, SceneError> {
-        let from = self.vec3(&c.from, "camera.from")?;
-        let at = self.vec3(&c.at, "camera.at")?;
-        let up = self.opt_vec3(&c.up, "camera.up", defaults::UP)?;
-        if let Err((fault, msg)) = validate::camera(from, at, up) {
+        let from = self.vec3(&c.from, &v::FROM)?;
+        let at = self.vec3(&c.at, &v::AT)?;
+        let up = self.opt_vec3(&c.up, &v::UP, defaults::UP)?;
+        if let Err((fault, msg)) = v::camera(from, at, up) {
             let span = match (fault, &c.up) {
                 (CameraFault::Up, Some(up)) => up.span(),
                 (CameraFault::Up, None) => {
-                    let msg = format!("{msg} (the default `up`); set camera.up");
+                    let msg = format!("{msg} (the default camera.up); set camera.up");
                     return Err(self.err(c.at.span(), msg));
                 }
                 (CameraFault::At, _) => c.at.span(),
             };
             return Err(self.err(span, msg));
         }
-        let fov = self.opt_num(&c.fov, "camera.fov", defaults::FOV)?;
-        if let Some(f) = &c.fov {
-            self.check(f.span(), validate::fov(fov))?;
-        }
-        let size = |v: &Option<Spanned<i64>>, what: &str, default: i64| match v {
+        let fov = self.opt_num(&c.fov, &v::FOV, defaults::FOV)?;
+        let size = |n: &Option<Spanned<i64>>, q: &v::IntQuantity, default: i64| match n {
             None => Ok(default as u32),
-            Some(n) => self.check(n.span(), validate::image_size(*n.get_ref(), what)),
+            Some(n) => {
+                let x = *n.get_ref();
+                self.check(n.span(), q.check(Some(x), &x.to_string()))
+            }
         };
         Ok(Camera {
             from,
             at,
             up,
             fov,
-            width: size(&c.width, "camera.width", defaults::WIDTH)?,
-            height: size(&c.height, "camera.height", defaults::HEIGHT)?,
+            width: size(&c.width, &v::WIDTH, defaults::WIDTH)?,
+            height: size(&c.height, &v::HEIGHT, defaults::HEIGHT)?,
         })
     }
 
     fn light(&self, l: &LightIn) -> Result<Light, SceneError> {
-        let falloff = self.opt_vec3(&l.falloff, "falloff", DVec3::from_array(defaults::FALLOFF))?;
+        let falloff = self.opt_vec3(
+            &l.falloff,
+            &v::FALLOFF,
+            DVec3::from_array(defaults::FALLOFF),
+        )?;
         if let Some(f) = &l.falloff {
-            self.check(f.span(), validate::non_negative3(falloff, "falloff"))?;
+            self.check(f.span(), v::falloff(falloff))?;
         }
         Ok(Light {
-            position: self.vec3(&l.position, "light position")?,
-            color: self.non_negative_color(&l.color, "light color", defaults::LIGHT_COLOR)?,
+            position: self.vec3(&l.position, &v::LIGHT_POSITION)?,
+            color: self.opt_color(&l.color, &v::LIGHT_COLOR, defaults::LIGHT_COLOR)?,
             falloff: falloff.to_array(),
         })
     }
 
     fn material(&self, name: &str, m: &MaterialIn) -> Result<Material, SceneError> {
-        let color = self.non_negative_color(&m.color, "color", defaults::COLOR)?;
-        let ka = self.non_negative_color(&m.ka, "ka", DVec3::splat(defaults::KA))?;
-        let kd = self.non_negative_color(&m.kd, "kd", DVec3::splat(defaults::KD))?;
-        let ior = self.opt_num(&m.ior, "ior", defaults::IOR)?;
-        if let Some(i) = &m.ior {
-            self.check(i.span(), validate::ior(ior))?;
-        }
+        let color = self.opt_color(&m.color, &v::COLOR, defaults::COLOR)?;
+        let ka = self.opt_color(&m.ka, &v::KA, DVec3::splat(defaults::KA))?;
+        let kd = self.opt_color(&m.kd, &v::KD, DVec3::splat(defaults::KD))?;
         Ok(Material {
             name: name.to_string(),
             ka: ka * color,
             kd: kd * color,
-            ksr: self.non_negative_num(&m.ks, "ks", defaults::KS)?,
-            nr: self.non_negative_num(&m.shine, "shine", defaults::SHINE)?,
-            kst: self.non_negative_num(&m.kst, "kst", defaults::KST)?,
-            nt: self.non_negative_num(&m.shine_t, "shine_t", defaults::SHINE_T)?,
-            kr: self.non_negative_color(&m.kr, "kr", DVec3::splat(defaults::KR))?,
-            kt: self.non_negative_color(&m.kt, "kt", DVec3::splat(defaults::KT))?,
-            ior,
-            absorption: self.non_negative_color(
+            ksr: self.opt_num(&m.ks, &v::KS, defaults::KS)?,
+            nr: self.opt_num(&m.shine, &v::SHINE, defaults::SHINE)?,
+            kst: self.opt_num(&m.kst, &v::KST, defaults::KST)?,
+            nt: self.opt_num(&m.shine_t, &v::SHINE_T, defaults::SHINE_T)?,
+            kr: self.opt_color(&m.kr, &v::KR, DVec3::splat(defaults::KR))?,
+            kt: self.opt_color(&m.kt, &v::KT, DVec3::splat(defaults::KT))?,
+            ior: self.opt_num(&m.ior, &v::IOR, defaults::IOR)?,
+            absorption: self.opt_color(
                 &m.absorption,
-                "absorption",
+                &v::ABSORPTION,
                 DVec3::splat(defaults::ABSORPTION),
             )?,
         })
     }
 
-    fn shape(&self, o: &ObjectIn) -> Result<Shape, SceneError> {
+    fn shape(&self, o: &ObjectIn, progress: &mut MeshProgress) -> Result<Shape, SceneError> {
         let kind = o.kind.get_ref().as_str();
         let Some(&(_, allowed)) = SHAPE_KEYS.iter().find(|(k, _)| *k == kind) else {
             let names: Vec<_> = SHAPE_KEYS.iter().map(|(k, _)| format!("\"{k}\"")).collect();
@@ -429,63 +415,57 @@ impl Ctx<'_> {
         }
         Ok(match kind {
             "sphere" => {
-                let center = self.vec3(req!(center), "center")?;
-                let r = req!(radius);
-                let radius = self.num(r, "radius")?;
-                self.check(r.span(), validate::sphere_radius(radius))?;
+                let center = self.vec3(req!(center), &v::CENTER)?;
+                let radius = self.num(req!(radius), &v::RADIUS)?;
                 Shape::Sphere { center, radius }
             }
             "plane" => {
-                let point = self.vec3(req!(point), "point")?;
-                let n = req!(normal);
-                let normal = self.vec3(n, "normal")?;
-                self.check(n.span(), validate::nonzero_vector(normal, "plane normal"))?;
+                let point = self.vec3(req!(point), &v::POINT)?;
+                let normal = self.vec3(req!(normal), &v::NORMAL)?;
                 Shape::Plane { point, normal }
             }
             "polygon" => {
-                let v = req!(vertices);
-                let vertices = self.points(v, "vertex")?;
-                if let Err(e) = validate::polygon(&vertices) {
-                    let span = e.index.map_or(v.span(), |i| v.get_ref()[i].span());
+                let vs = req!(vertices);
+                let vertices = self.points(vs, &v::VERTEX)?;
+                if let Err(e) = v::polygon(&vertices) {
+                    let span = e.index.map_or(vs.span(), |i| vs.get_ref()[i].span());
                     return Err(self.err(span, e.message));
                 }
                 Shape::Polygon { vertices }
             }
             "triangle" => {
-                let v = req!(vertices);
+                let vs = req!(vertices);
                 let vertices: [DVec3; 3] =
-                    self.points(v, "vertex")?.try_into().map_err(|p: Vec<_>| {
-                        self.err(
-                            v.span(),
-                            format!("a triangle needs 3 vertices, got {}", p.len()),
-                        )
-                    })?;
-                self.check(v.span(), validate::triangle(&vertices))?;
+                    self.points(vs, &v::VERTEX)?
+                        .try_into()
+                        .map_err(|p: Vec<_>| {
+                            self.err(
+                                vs.span(),
+                                format!("a triangle needs 3 vertices, got {}", p.len()),
+                            )
+                        })?;
+                self.check(vs.span(), v::triangle(&vertices))?;
                 let normals = match &o.normals {
                     None => None,
                     Some(n) => {
-                        let ns: [DVec3; 3] =
-                            self.points(n, "normal")?.try_into().map_err(|p: Vec<_>| {
+                        let ns: [DVec3; 3] = self
+                            .points(n, &v::VERTEX_NORMAL)?
+                            .try_into()
+                            .map_err(|p: Vec<_>| {
                                 self.err(
                                     n.span(),
                                     format!("a triangle needs 3 normals, got {}", p.len()),
                                 )
                             })?;
-                        for (i, x) in ns.iter().enumerate() {
-                            self.check(
-                                n.get_ref()[i].span(),
-                                validate::nonzero_vector(*x, "a vertex normal"),
-                            )?;
-                        }
                         Some(Box::new(ns))
                     }
                 };
                 Shape::Triangle { vertices, normals }
             }
             "box" => {
-                let min = self.vec3(req!(min), "min")?;
-                let max = self.vec3(req!(max), "max")?;
-                self.check(req!(min).span(), validate::box_bounds(min, max))?;
+                let min = self.vec3(req!(min), &v::MIN)?;
+                let max = self.vec3(req!(max), &v::MAX)?;
+                self.check(req!(min).span(), v::box_bounds(min, max))?;
                 Shape::Box { min, max }
             }
             "quadric" => {
@@ -501,37 +481,38 @@ impl Ctx<'_> {
                 }
                 let mut coefficients = [0.0; 10];
                 for (o, x) in coefficients.iter_mut().zip(c.get_ref()) {
-                    *o = self.num(x, "quadric coefficient")?;
+                    *o = self.num(x, &v::COEFFICIENT)?;
                 }
-                self.check(c.span(), validate::quadric(&coefficients))?;
+                self.check(c.span(), v::quadric(&coefficients))?;
                 let clip = match &o.clip {
                     None => None,
                     Some(clip) => {
                         let c = clip.get_ref();
-                        let min = self.vec3(&c.min, "clip.min")?;
-                        let max = self.vec3(&c.max, "clip.max")?;
-                        self.check(c.min.span(), validate::box_bounds(min, max))?;
+                        let min = self.vec3(&c.min, &v::CLIP_MIN)?;
+                        let max = self.vec3(&c.max, &v::CLIP_MAX)?;
+                        self.check(c.min.span(), v::box_bounds(min, max))?;
                         Some((min, max))
                     }
                 };
                 Shape::Quadric { coefficients, clip }
             }
             "cone" | "cylinder" => {
-                let base = self.vec3(req!(base), "base")?;
-                let apex = self.vec3(req!(apex), "apex")?;
+                let base = self.vec3(req!(base), &v::BASE)?;
+                let apex = self.vec3(req!(apex), &v::APEX)?;
                 let (base_radius, apex_radius) = if kind == "cone" {
                     (
-                        self.num(req!(base_radius), "base_radius")?,
-                        self.num(req!(apex_radius), "apex_radius")?,
+                        self.num(req!(base_radius), &v::BASE_RADIUS)?,
+                        self.num(req!(apex_radius), &v::APEX_RADIUS)?,
                     )
                 } else {
-                    let r = self.num(req!(radius), "radius")?;
+                    let r = self.num(req!(radius), &v::CYLINDER_RADIUS)?;
+                    if r == 0.0 {
+                        let msg = "cylinder radius must not be 0";
+                        return Err(self.err(req!(radius).span(), msg));
+                    }
                     (r, r)
                 };
-                self.check(
-                    o.kind.span(),
-                    validate::cone(base, base_radius, apex, apex_radius),
-                )?;
+                self.check(o.kind.span(), v::cone(base, base_radius, apex, apex_radius))?;
                 Shape::Cone {
                     base,
                     base_radius,
@@ -539,12 +520,18 @@ impl Ctx<'_> {
                     apex_radius,
                 }
             }
-            "mesh" => Shape::Mesh(Box::new(self.mesh(o)?)),
+            "mesh" => Shape::Mesh(Box::new(self.mesh(o, progress)?)),
             _ => unreachable!("every name in SHAPE_KEYS is handled"),
         })
     }
 
-    fn mesh(&self, o: &ObjectIn) -> Result<Mesh, SceneError> {
+    /// The `.obj` file a mesh object names, relative to the scene's directory.
+    fn obj_path(&self, file: &Spanned<String>) -> PathBuf {
+        let dir = self.path.parent().unwrap_or(Path::new(""));
+        dir.join(file.get_ref())
+    }
+
+    fn mesh(&self, o: &ObjectIn, progress: &mut MeshProgress) -> Result<Mesh, SceneError> {
         let smooth = o.smooth.as_ref().is_some_and(|s| *s.get_ref());
         if let Some(file) = &o.file {
             for (key, span) in o.present_keys() {
@@ -555,9 +542,12 @@ impl Ctx<'_> {
                     ));
                 }
             }
-            let dir = self.path.parent().unwrap_or(Path::new(""));
-            let obj_path = dir.join(file.get_ref());
-            return obj::load_mesh(&obj_path, smooth).map_err(|m| self.err(file.span(), m));
+            let done = progress.done;
+            let report = |n: u64| (progress.report)(done + n, progress.total);
+            let (mesh, bytes) = obj::load_mesh(&self.obj_path(file), smooth, &report)
+                .map_err(|m| self.err(file.span(), m))?;
+            progress.done += bytes;
+            return Ok(mesh);
         }
         let kind_span = o.kind.span();
         let p = o.positions.as_ref().ok_or_else(|| {
@@ -572,7 +562,7 @@ impl Ctx<'_> {
                 "a mesh needs `triangles` along with `positions`",
             )
         })?;
-        let positions = self.points(p, "mesh position")?;
+        let positions = self.points(p, &v::MESH_POSITION)?;
         if positions.len() > u32::MAX as usize {
             return Err(self.err(p.span(), "too many positions"));
         }
@@ -601,10 +591,7 @@ impl Ctx<'_> {
                 }
                 *o = n as u32;
             }
-            self.check(
-                tri.span(),
-                validate::triangle(&idx.map(|i| positions[i as usize])),
-            )?;
+            self.check(tri.span(), v::triangle(&idx.map(|i| positions[i as usize])))?;
             triangles.push(idx);
         }
         if triangles.is_empty() {
@@ -612,7 +599,7 @@ impl Ctx<'_> {
         }
         let normals = match &o.normals {
             Some(n) => {
-                let ns = self.points(n, "mesh normal")?;
+                let ns = self.points(n, &v::MESH_NORMAL)?;
                 if ns.len() != positions.len() {
                     return Err(self.err(
                         n.span(),
@@ -622,12 +609,6 @@ impl Ctx<'_> {
                             ns.len()
                         ),
                     ));
-                }
-                for (i, x) in ns.iter().enumerate() {
-                    self.check(
-                        n.get_ref()[i].span(),
-                        validate::nonzero_vector(*x, "a vertex normal"),
-                    )?;
                 }
                 Some(ns)
             }
@@ -640,28 +621,154 @@ impl Ctx<'_> {
             triangles,
         })
     }
+
+    /// Where a scene-wide fault points: the value it is about.
+    fn site_error(&self, input: &SceneIn, scene: &Scene, f: Fault) -> SceneError {
+        let cam = &input.camera;
+        let span = match f.site {
+            Site::CameraAt => cam.at.span(),
+            Site::CameraFov => cam
+                .fov
+                .as_ref()
+                .map(|x| x.span())
+                .or(cam.height.as_ref().map(|x| x.span()))
+                .unwrap_or(cam.at.span()),
+            Site::Light(i) => input.light[i].position.span(),
+            Site::Object(i, part) => {
+                let o = &input.object[i];
+                if let (Some(file), Part::Point(k), Shape::Mesh(m)) =
+                    (&o.file, part, &scene.objects[i].shape)
+                {
+                    // A vertex of an .obj file: name its line there too.
+                    let obj = self.obj_path(file);
+                    let line = obj::vertex_line(&obj, m.positions[k])
+                        .map_or(String::new(), |l| format!(":{l}"));
+                    let msg = format!("{} (in {}{line})", f.message, obj.display());
+                    return self.err(file.span(), msg);
+                }
+                object_span(o, part)
+            }
+        };
+        self.err(span, f.message)
+    }
+}
+
+/// The span of an object's value `part` (see [`Part`]), else of its `type`.
+fn object_span(o: &ObjectIn, part: Part) -> Range<usize> {
+    let span = |v: &Option<Vector>| v.as_ref().map(|v| v.span());
+    let element = |v: &Option<Spanned<Vec<Vector>>>, k: usize| {
+        v.as_ref()
+            .map(|v| v.get_ref().get(k).map_or(v.span(), |x| x.span()))
+    };
+    let clip = |k: usize| {
+        o.clip.as_ref().map(|c| {
+            let c = c.get_ref();
+            if k == 0 {
+                c.min.span()
+            } else {
+                c.max.span()
+            }
+        })
+    };
+    let found = match (o.kind.get_ref().as_str(), part) {
+        ("sphere", Part::Point(_)) => span(&o.center),
+        ("sphere", Part::Size) => o.radius.as_ref().map(|r| r.span()),
+        ("plane", _) => span(&o.point),
+        ("polygon" | "triangle", Part::Point(k)) => element(&o.vertices, k),
+        ("polygon" | "triangle", _) => o.vertices.as_ref().map(|v| v.span()),
+        ("box", Part::Point(1)) => span(&o.max),
+        ("box", _) => span(&o.min),
+        ("quadric", Part::Point(k)) => clip(k),
+        ("quadric", Part::Size) => o.clip.as_ref().map(|c| c.span()),
+        ("quadric", Part::Coefficients) => o.coefficients.as_ref().map(|c| c.span()),
+        ("cone" | "cylinder", Part::Point(1)) => span(&o.apex),
+        ("cone" | "cylinder", Part::Point(_)) => span(&o.base),
+        ("cylinder", Part::Size) => o.radius.as_ref().map(|r| r.span()),
+        ("cone", Part::Size) => o.base_radius.as_ref().map(|r| r.span()),
+        ("mesh", Part::Point(k)) => element(&o.positions, k),
+        ("mesh", _) => o
+            .positions
+            .as_ref()
+            .map(|p| p.span())
+            .or(o.file.as_ref().map(|f| f.span())),
+        _ => None,
+    };
+    found.unwrap_or(o.kind.span())
+}
+
+/// Progress over the scene text and the `.obj` files it names.
+struct MeshProgress<'a> {
+    report: &'a dyn Fn(u64, u64),
+    done: u64,
+    total: u64,
+}
+
+/// toml's message, made clearer where it is terse: an integer beyond i64
+/// or a float beyond f64 is out of range (`value` is the text it points
+/// at), and `i64`, `f64` are named as what they mean.
+fn toml_message(msg: &str, value: &str) -> String {
+    let msg = msg.trim_end();
+    if msg.starts_with("number too large to fit in target type")
+        || msg.starts_with("number too small to fit in target type")
+    {
+        return format!(
+            "integer out of range: TOML integers are 64-bit, {} ..= {}",
+            i64::MIN,
+            i64::MAX
+        );
+    }
+    if msg == "invalid floating-point number" {
+        let number: String = value
+            .chars()
+            .take_while(|c| !c.is_whitespace() && !matches!(c, ',' | ']' | '}' | '#'))
+            .filter(|&c| c != '_')
+            .collect();
+        if number.parse::<f64>().is_ok_and(f64::is_infinite) {
+            return format!(
+                "number out of range: {number} is beyond f64 (magnitudes up to {:e})",
+                f64::MAX
+            );
+        }
+    }
+    msg.replace("expected i64", "expected an integer")
+        .replace("expected f64", "expected a number")
 }
 
 /// Parses the native format. `path` is used for messages and to resolve
 /// `.obj` files (relative to its directory).
-pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+pub(super) fn parse(
+    text: &str,
+    path: &Path,
+    progress: &dyn Fn(u64, u64),
+) -> Result<Scene, SceneError> {
+    progress(0, text.len() as u64);
     let input: SceneIn = toml::from_str(text).map_err(|e| {
-        let msg = e.message().trim_end().to_string();
+        let value = e.span().map_or("", |r| text.get(r.start..).unwrap_or(""));
+        let msg = toml_message(e.message(), value);
         match e.span() {
             Some(span) => SceneError::at_offset(path, text, span.start, msg),
             None => SceneError::in_file(path, msg),
         }
     })?;
     let cx = Ctx { text, path };
+    // The .obj files join the total now that their names are known (a
+    // missing one counts 0 and fails when it is read).
+    let obj_bytes: u64 = input
+        .object
+        .iter()
+        .filter_map(|o| o.file.as_ref())
+        .map(|f| std::fs::metadata(cx.obj_path(f)).map_or(0, |m| m.len()))
+        .sum();
+    let mut meshes = MeshProgress {
+        report: progress,
+        done: text.len() as u64,
+        total: text.len() as u64 + obj_bytes,
+    };
+    progress(meshes.done, meshes.total);
+
     let camera = cx.camera(&input.camera)?;
-    let background = cx.opt_color(&input.background, "background", defaults::BACKGROUND)?;
-    let ambient = cx.opt_color(&input.ambient, "ambient", defaults::AMBIENT)?;
-    if let Some(a) = &input.ambient {
-        cx.check(a.span(), validate::non_negative3(ambient, "ambient"))?;
-    }
-    if let Some(b) = &input.background {
-        cx.check(b.span(), validate::non_negative3(background, "background"))?;
-    }
+    let background = cx.opt_color(&input.background, &v::BACKGROUND, defaults::BACKGROUND)?;
+    let ambient = cx.opt_color(&input.ambient, &v::AMBIENT, defaults::AMBIENT)?;
     let lights = input
         .light
         .iter()
@@ -685,7 +792,7 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
 
     let mut objects = Vec::with_capacity(input.object.len());
     for o in &input.object {
-        let shape = cx.shape(o)?;
+        let shape = cx.shape(o, &mut meshes)?;
         let material = match &o.material {
             None => 0,
             Some(name) => *index.get(name.get_ref().as_str()).ok_or_else(|| {
@@ -703,7 +810,7 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         };
         objects.push(Object { shape, material });
     }
-    Ok(Scene {
+    let scene = Scene {
         camera,
         background,
         ambient,
@@ -711,7 +818,12 @@ pub(super) fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         materials,
         objects,
         source: path.to_path_buf(),
-    })
+    };
+    if let Err(f) = v::scene_limits(&scene) {
+        return Err(cx.site_error(&input, &scene, f));
+    }
+    progress(meshes.total, meshes.total);
+    Ok(scene)
 }
 
 #[cfg(test)]
@@ -721,11 +833,11 @@ mod tests {
     const CAM: &str = "[camera]\nfrom = [0, -8, 3]\nat = [0, 0, 0]\n";
 
     fn parse_ok(text: &str) -> Scene {
-        parse(text, Path::new("t.toml")).unwrap_or_else(|e| panic!("{e}"))
+        parse(text, Path::new("t.toml"), &|_, _| {}).unwrap_or_else(|e| panic!("{e}"))
     }
 
     fn parse_err(text: &str) -> (usize, usize, String) {
-        let e = parse(text, Path::new("t.toml")).expect_err("should fail");
+        let e = parse(text, Path::new("t.toml"), &|_, _| {}).expect_err("should fail");
         (
             e.line().unwrap(),
             e.column().unwrap(),

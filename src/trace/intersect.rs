@@ -7,6 +7,7 @@
 use super::math::{v3, Ray, Real, V3};
 use crate::constants::*;
 use crate::pack::layout::Prim;
+use crate::pack::polygon::{axes, float_at, vertex};
 
 /// A hit: distance `t` and two parameters whose meaning depends on the kind
 /// (triangle: barycentric weights of v0 and v1; box: axis and side).
@@ -168,65 +169,81 @@ pub fn triangle<F: Real>(
     }
 }
 
-/// Planar polygon: the plane, then a 2D test with the dominant normal axis
-/// dropped: all edges on one side for convex polygons, the crossings test
-/// (even-odd) for the rest.
+/// Planar polygon: the plane, then a 2D test in the plane of the two axes
+/// other than the normal's largest (the vertices are packed projected,
+/// `pack::polygon`): all edges on one side for convex polygons, the
+/// crossings test (even-odd) for the rest, over the hit point's edge band
+/// when the polygon has bands (the same parity as over every edge).
 #[inline(always)]
 pub fn polygon<F: Real>(prim: &Prim, extra: &[[f32; 4]], ray: &Ray<F>, tmax: F) -> Option<Hit<F>> {
     let n = V3::of(&prim.a);
     let h = plane(n, F::of(prim.a[3]), ray, tmax)?;
     let p = ray.o + ray.d * h.t;
     let count = prim.b[0] as usize;
-    let drop = prim.b[1] as usize;
+    let (i0, i1) = axes(prim.b[1] as usize);
     let convex = prim.b[2] != 0.0;
-    let (i0, i1) = match drop {
-        0 => (1, 2),
-        1 => (2, 0),
-        _ => (0, 1),
-    };
     let px = p.get(i0);
     let py = p.get(i1);
-    let verts = &extra[prim.data as usize..prim.data as usize + count];
+    let base = prim.data as usize;
+    let bands = prim.c[2] as usize;
+    let lists = base + count.div_ceil(2);
+    let (lo, hi) = polygon_edges(prim, extra, py);
     let zero = F::zero();
-    if convex {
-        let mut pos = false;
-        let mut neg = false;
-        let mut prev = V3::<F>::of(&verts[count - 1]);
-        for vert in verts {
-            let cur = V3::<F>::of(vert);
-            let ex = cur.get(i0) - prev.get(i0);
-            let ey = cur.get(i1) - prev.get(i1);
-            let e = ex * (py - prev.get(i1)) - ey * (px - prev.get(i0));
+    let mut pos = false;
+    let mut neg = false;
+    let mut inside = false;
+    for e in lo..hi {
+        let j = if bands > 0 && !convex {
+            float_at(extra, lists, bands + 1 + e) as usize
+        } else {
+            e
+        };
+        let [pu, pv] = vertex(extra, base, if j == 0 { count - 1 } else { j - 1 });
+        let [cu, cv] = vertex(extra, base, j);
+        let (ax, ay, bx, by) = (F::of(pu), F::of(pv), F::of(cu), F::of(cv));
+        if convex {
+            let ex = bx - ax;
+            let ey = by - ay;
+            let e = ex * (py - ay) - ey * (px - ax);
             pos = pos || e > zero;
             neg = neg || e < zero;
-            prev = cur;
-        }
-        if pos && neg {
-            None
-        } else {
-            Some(h)
-        }
-    } else {
-        let mut inside = false;
-        let mut prev = V3::<F>::of(&verts[count - 1]);
-        for vert in verts {
-            let cur = V3::<F>::of(vert);
-            let (ay, by) = (prev.get(i1), cur.get(i1));
-            if (ay > py) != (by > py) {
-                let (ax, bx) = (prev.get(i0), cur.get(i0));
-                let xc = ax + (py - ay) * (bx - ax) / (by - ay);
-                if px < xc {
-                    inside = !inside;
-                }
+        } else if (ay > py) != (by > py) {
+            let xc = ax + (py - ay) * (bx - ax) / (by - ay);
+            if px < xc {
+                inside = !inside;
             }
-            prev = cur;
-        }
-        if inside {
-            Some(h)
-        } else {
-            None
         }
     }
+    let hit = if convex { !(pos && neg) } else { inside };
+    if hit {
+        Some(h)
+    } else {
+        None
+    }
+}
+
+/// The edges a polygon test walks at plane coordinate `py` (the second of
+/// its two axes), as a range: every edge, or the list of `py`'s edge band
+/// (`pack::polygon`).
+#[inline(always)]
+pub fn polygon_edges<F: Real>(prim: &Prim, extra: &[[f32; 4]], py: F) -> (usize, usize) {
+    let count = prim.b[0] as usize;
+    let convex = prim.b[2] != 0.0;
+    let bands = prim.c[2] as usize;
+    if convex || bands == 0 {
+        return (0, count);
+    }
+    let lists = prim.data as usize + count.div_ceil(2);
+    let fb = ((py - F::of(prim.c[0])) * F::of(prim.c[1])).floor();
+    let b = fb
+        .max(F::zero())
+        .min(F::of((bands - 1) as f32))
+        .to_usize()
+        .unwrap_or(0);
+    (
+        float_at(extra, lists, b) as usize,
+        float_at(extra, lists, b + 1) as usize,
+    )
 }
 
 /// Slabs. A ray parallel to a slab pair misses unless its origin lies
@@ -727,18 +744,20 @@ mod tests {
 
     #[test]
     fn polygons_convex_and_concave() {
-        // L-shape in z = 1 (concave), and a square (convex)
-        let l: Vec<[f32; 4]> = [
-            [0.0, 0.0],
-            [2.0, 0.0],
-            [2.0, 1.0],
-            [1.0, 1.0],
-            [1.0, 2.0],
-            [0.0, 2.0],
-        ]
-        .iter()
-        .map(|p| [p[0], p[1], 1.0, 0.0])
-        .collect();
+        // L-shape in z = 1 (concave), and a square (convex); drop axis z,
+        // so the projected coordinates are (x, y).
+        let l = crate::pack::polygon::pack(
+            &[
+                [0.0, 0.0],
+                [2.0, 0.0],
+                [2.0, 1.0],
+                [1.0, 1.0],
+                [1.0, 2.0],
+                [0.0, 2.0],
+            ],
+            false,
+        )
+        .extra;
         let poly = prim(
             KIND_POLYGON,
             [0.0, 0.0, 1.0, 1.0],
@@ -755,12 +774,9 @@ mod tests {
         assert!(hits(&poly, 0.5, 1.5));
         assert!(!hits(&poly, 1.5, 1.5), "the notch of the L");
         assert!(!hits(&poly, 2.5, 0.5));
-        let sq: Vec<[f32; 4]> = vec![
-            [0.0, 0.0, 1.0, 0.0],
-            [1.0, 0.0, 1.0, 0.0],
-            [1.0, 1.0, 1.0, 0.0],
-            [0.0, 1.0, 1.0, 0.0],
-        ];
+        let sq =
+            crate::pack::polygon::pack(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], true)
+                .extra;
         let square = prim(
             KIND_POLYGON,
             [0.0, 0.0, 1.0, 1.0],

@@ -1,0 +1,235 @@
+//! How a polygon is packed (docs/method.md, "Polygon"): its plane in
+//! `Prim::a`, `[count, drop axis, convex, longest band]` in `Prim::b`, and
+//! in `extra` from `Prim::data`:
+//!
+//! 1. its vertices projected on the plane of the two axes other than the
+//!    normal's largest (`axes`), two to a vec4: `(u0, v0, u1, v1)`, ...;
+//! 2. for a non-convex polygon of `BAND_MIN_VERTICES` or more, edge bands:
+//!    the range of v cut into K bands (`Prim::c` = `[v_min, K / (v_max −
+//!    v_min), K, 0]`), then, as floats four to a vec4, the K + 1 offsets of
+//!    each band's list and the lists of edges (edge j runs from vertex j − 1
+//!    to vertex j) whose v range meets the band or its neighbours.
+//!
+//! The crossings test counts the edges that cross the horizontal line
+//! through the hit point; every such edge spans the point's v, so it is in
+//! the point's band (the margin of one band absorbs any rounding in
+//! computing a band index), and the test over a band's list gives the same
+//! parity as the test over all edges, bit for bit, in any float type. A
+//! 144-vertex gear face costs a dozen edge tests instead of 144.
+
+/// Non-convex polygons with at least this many vertices get edge bands.
+pub const BAND_MIN_VERTICES: usize = 16;
+/// Most bands a polygon gets.
+pub const BANDS_MAX: usize = 256;
+/// Bands are given up when their lists would hold more than this many
+/// edges per vertex (edges spanning most of the polygon's height).
+pub const BAND_REFS_PER_VERTEX: usize = 8;
+
+/// The two axes a polygon is tested in, for the axis its normal drops.
+pub fn axes(drop: usize) -> (usize, usize) {
+    match drop {
+        0 => (1, 2),
+        1 => (2, 0),
+        _ => (0, 1),
+    }
+}
+
+/// The band of `y` among `k` bands from `v_min` with `inv_h` bands per unit.
+fn band(y: f32, v_min: f32, inv_h: f32, k: usize) -> usize {
+    let b = ((y - v_min) * inv_h).floor();
+    b.clamp(0.0, (k - 1) as f32) as usize
+}
+
+/// The packed form of one polygon: what goes in `extra`, `Prim::c`, and
+/// the longest band list (the loop a test makes at most).
+pub struct Packed2d {
+    pub extra: Vec<[f32; 4]>,
+    pub c: [f32; 4],
+    pub longest: usize,
+}
+
+/// Packs projected vertices `q` (already in f32, as the tracers read them).
+pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
+    let n = q.len();
+    let mut extra: Vec<[f32; 4]> = q
+        .chunks(2)
+        .map(|c| {
+            let b = c.get(1).copied().unwrap_or([0.0; 2]);
+            [c[0][0], c[0][1], b[0], b[1]]
+        })
+        .collect();
+    let plain = Packed2d {
+        extra: extra.clone(),
+        c: [0.0; 4],
+        longest: n,
+    };
+    if convex || n < BAND_MIN_VERTICES {
+        return plain;
+    }
+    let (lo, hi) = q
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), p| {
+            (l.min(p[1]), h.max(p[1]))
+        });
+    let mut k = (n / 4).clamp(2, BANDS_MAX);
+    let lists = loop {
+        if hi <= lo || k < 2 {
+            return plain;
+        }
+        let inv_h = k as f32 / (hi - lo);
+        if !inv_h.is_finite() {
+            return plain;
+        }
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); k];
+        for j in 0..n {
+            let (a, b) = (q[(j + n - 1) % n][1], q[j][1]);
+            let b0 = band(a.min(b), lo, inv_h, k).saturating_sub(1);
+            let b1 = (band(a.max(b), lo, inv_h, k) + 1).min(k - 1);
+            for l in &mut lists[b0..=b1] {
+                l.push(j as u32);
+            }
+        }
+        let total: usize = lists.iter().map(Vec::len).sum();
+        if total <= BAND_REFS_PER_VERTEX * n {
+            break (lists, inv_h);
+        }
+        k /= 2;
+    };
+    let (lists, inv_h) = lists;
+    let longest = lists.iter().map(Vec::len).max().unwrap_or(0);
+    if longest * 2 > n {
+        return plain; // no gain
+    }
+    // Offsets, then the lists, as exact floats (all < 2^24).
+    let mut floats: Vec<f32> =
+        Vec::with_capacity(k + 1 + lists.iter().map(Vec::len).sum::<usize>());
+    let mut at = 0usize;
+    floats.push(0.0);
+    for l in &lists {
+        at += l.len();
+        floats.push(at as f32);
+    }
+    for l in &lists {
+        floats.extend(l.iter().map(|&j| j as f32));
+    }
+    extra.extend(floats.chunks(4).map(|c| {
+        let mut v = [0.0f32; 4];
+        v[..c.len()].copy_from_slice(c);
+        v
+    }));
+    Packed2d {
+        extra,
+        c: [lo, inv_h, k as f32, 0.0],
+        longest,
+    }
+}
+
+/// Vertex `j`'s projected coordinates from the pairs at `extra[base..]`.
+#[inline(always)]
+pub fn vertex(extra: &[[f32; 4]], base: usize, j: usize) -> [f32; 2] {
+    let e = &extra[base + j / 2];
+    if j.is_multiple_of(2) {
+        [e[0], e[1]]
+    } else {
+        [e[2], e[3]]
+    }
+}
+
+/// Float `i` of the stream that starts at `extra[base]`.
+#[inline(always)]
+pub fn float_at(extra: &[[f32; 4]], base: usize, i: usize) -> f32 {
+    extra[base + i / 4][i % 4]
+}
+
+/// The polygon's vertices back in 3D (camera-relative), from its plane and
+/// projected vertices: for messages and test targets, not for tracing.
+pub fn vertices_3d(prim: &super::layout::Prim, extra: &[[f32; 4]]) -> Vec<[f32; 3]> {
+    let count = prim.b[0] as usize;
+    let drop = prim.b[1] as usize;
+    let (i0, i1) = axes(drop);
+    let n = [prim.a[0], prim.a[1], prim.a[2]];
+    (0..count)
+        .map(|j| {
+            let [u, v] = vertex(extra, prim.data as usize, j);
+            let mut p = [0.0f32; 3];
+            p[i0] = u;
+            p[i1] = v;
+            p[drop] = (prim.a[3] - n[i0] * u - n[i1] * v) / n[drop];
+            p
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A gear-like outline: teeth alternating between two radii.
+    fn star(teeth: usize) -> Vec<[f32; 2]> {
+        (0..2 * teeth)
+            .map(|i| {
+                let a = i as f32 * std::f32::consts::PI / teeth as f32;
+                let r = if i % 2 == 0 { 1.0 } else { 0.8 };
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    }
+
+    /// Even-odd over all edges, as the tracers do without bands.
+    fn crossings(q: &[[f32; 2]], px: f32, py: f32, edges: impl Iterator<Item = usize>) -> bool {
+        let n = q.len();
+        let mut inside = false;
+        for j in edges {
+            let (a, b) = (q[(j + n - 1) % n], q[j]);
+            if (a[1] > py) != (b[1] > py) {
+                let xc = a[0] + (py - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+                if px < xc {
+                    inside = !inside;
+                }
+            }
+        }
+        inside
+    }
+
+    #[test]
+    fn a_band_gives_the_parity_of_all_edges() {
+        let q = star(72);
+        let p = pack(&q, false);
+        let [lo, inv_h, k, _] = p.c;
+        let k = k as usize;
+        assert!(k >= 8, "a gear face gets bands");
+        assert!(p.longest * 3 < q.len(), "longest band {}", p.longest);
+        let base = q.len().div_ceil(2);
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 * 2.4 - 1.2
+        };
+        for _ in 0..20_000 {
+            let (px, py) = (next(), next());
+            let b = band(py, lo, inv_h, k);
+            let (s, e) = (
+                float_at(&p.extra, base, b) as usize,
+                float_at(&p.extra, base, b + 1) as usize,
+            );
+            let edges = (s..e).map(|i| float_at(&p.extra, base, k + 1 + i) as usize);
+            assert_eq!(
+                crossings(&q, px, py, edges),
+                crossings(&q, px, py, 0..q.len()),
+                "({px}, {py})"
+            );
+        }
+        // the vertices read back
+        for (j, v) in q.iter().enumerate() {
+            assert_eq!(vertex(&p.extra, 0, j), *v);
+        }
+    }
+
+    #[test]
+    fn convex_and_small_polygons_get_no_bands() {
+        assert_eq!(pack(&star(72), true).c, [0.0; 4]);
+        assert_eq!(pack(&star(4), false).c, [0.0; 4]);
+        let p = pack(&star(3), false);
+        assert_eq!(p.extra.len(), 3);
+    }
+}
