@@ -1383,6 +1383,95 @@ mod tests {
         assert_eq!(p.globals.flags[0], 0);
     }
 
+    /// `--accel` picks the structure the tracers walk; `--grid` under
+    /// `auto` means the grid, beside `--accel bvh` it is refused.
+    #[test]
+    fn the_structure_is_the_one_asked_for() {
+        let s = crate::gen::random_spheres(500, 2);
+        for (accel, grid, want) in [
+            (Accel::Grid, None, Accel::Grid),
+            (Accel::Bvh, None, Accel::Bvh),
+            (Accel::Auto, Some([4, 4, 4]), Accel::Grid),
+            (Accel::Grid, Some([4, 4, 4]), Accel::Grid),
+        ] {
+            let p = pack(
+                &s,
+                &Settings {
+                    accel,
+                    grid,
+                    ..Settings::default()
+                },
+            )
+            .unwrap();
+            assert_eq!((p.structure(), p.accel.structure), (want, want));
+            assert!(!p.accel.auto);
+            let bvh = want == Accel::Bvh;
+            assert_eq!(p.bvh.is_empty(), !bvh);
+            assert_eq!(p.globals.flags[2] as usize * 2, p.bvh.len());
+            assert_eq!(
+                p.globals.grid_min[3] == 1.0,
+                !bvh,
+                "the DDA runs only on the grid"
+            );
+            assert_eq!(p.grid.refs > 0, !bvh);
+            assert!(p.accel.bytes > 0 && p.accel.build_seconds >= 0.0);
+            if bvh {
+                assert!(p.accel.nodes > 0 && p.accel.leaves > p.accel.nodes / 2);
+                assert_eq!(p.accel.bytes, p.bvh.len() * 32);
+            }
+        }
+        let p = pack(&s, &Settings::default()).unwrap();
+        assert!(p.accel.auto);
+        let e = pack(
+            &s,
+            &Settings {
+                accel: Accel::Bvh,
+                grid: Some([4, 4, 4]),
+                ..Settings::default()
+            },
+        )
+        .unwrap_err();
+        assert_eq!(e, PackError::GridWithBvh);
+        assert!(e.to_string().contains("--accel bvh"), "{e}");
+    }
+
+    /// A budget the grid fits but the BVH's build does not: refused by
+    /// estimate, the BVH counted.
+    #[test]
+    fn the_bvh_is_budgeted() {
+        let s = crate::gen::random_spheres(20_000, 1);
+        let settings = |accel, budget| Settings {
+            width: Some(16),
+            height: Some(16),
+            accel,
+            budget,
+            ..Settings::default()
+        };
+        let (prims, extra, scene_bytes) = census(&s);
+        let base = Need {
+            width: 16,
+            height: 16,
+            scene_objects: s.objects.len() as u64,
+            scene_bytes,
+            prims,
+            bounded: prims,
+            extra,
+            cells: 1,
+            ..Need::default()
+        };
+        let with_bvh = Need { bvh: true, ..base };
+        // Between what the packing needs without the BVH and with it.
+        let limit = (base.peak() + with_bvh.peak()) / 2;
+        let Err(PackError::Budget(e)) = pack(&s, &settings(Accel::Bvh, Budget::bytes(limit)))
+        else {
+            panic!("not refused");
+        };
+        assert!(e.need.bvh);
+        assert!(e.total > limit && e.total <= with_bvh.peak());
+        assert!(pack(&s, &settings(Accel::Grid, Budget::bytes(limit))).is_ok());
+        assert!(pack(&s, &settings(Accel::Bvh, Budget::bytes(with_bvh.peak()))).is_ok());
+    }
+
     #[test]
     fn convexity() {
         let sq = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
