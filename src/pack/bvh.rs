@@ -185,7 +185,8 @@ pub fn build(bounds: &[Bounds], progress: Progress) -> Bvh {
     };
     let mut nodes = Vec::new();
     let mut shape = Shape::default();
-    let root = build_rec(&ctx, &mut items, 0, 0, &mut nodes, &mut shape);
+    let nb = node_bounds(&items);
+    let root = build_rec(&ctx, &mut items, nb, 0, 0, &mut nodes, &mut shape);
     if root.count > 0 {
         // The whole scene is one leaf: a root whose second child is empty.
         nodes = vec![root, BvhChild::EMPTY];
@@ -234,18 +235,13 @@ fn ceil_log2(n: usize) -> u32 {
 fn build_rec(
     ctx: &Ctx,
     items: &mut [Item],
+    NodeBounds { bb, cb }: NodeBounds,
     first: u32,
     depth: u32,
     out: &mut Vec<BvhChild>,
     shape: &mut Shape,
 ) -> BvhChild {
     let n = items.len();
-    let mut bb = Aabb::EMPTY;
-    let mut cb = Aabb::EMPTY;
-    for it in items.iter() {
-        bb.grow(&it.lo, &it.hi);
-        cb.grow_point([it.c2(0), it.c2(1), it.c2(2)]);
-    }
     let leaf = |shape: &mut Shape| {
         shape.leaves += 1;
         shape.max_leaf = shape.max_leaf.max(n as u32);
@@ -265,7 +261,7 @@ fn build_rec(
     }
     // The heuristic while the depth allows it (module docs), else the median.
     let free = depth + ceil_log2(n) < BVH_STACK_SIZE - 1;
-    let mid = match if free {
+    let split = match if free {
         sah_split(items, &bb, &cb)
     } else {
         None
@@ -288,10 +284,10 @@ fn build_rec(
     };
     // A split always leaves both sides non-empty (the heuristic only
     // weighs such splits); guard against a bin disagreeing anyway.
-    let mid = if mid == 0 || mid == n {
+    let (mid, lb, rb) = if split.0 == 0 || split.0 == n {
         median_split(items, &cb)
     } else {
-        mid
+        split
     };
     shape.depth = shape.depth.max(depth);
     let (left, right) = items.split_at_mut(mid);
@@ -303,13 +299,13 @@ fn build_rec(
             || {
                 let mut v = Vec::new();
                 let mut s = Shape::default();
-                let c = build_rec(ctx, left, first, depth + 1, &mut v, &mut s);
+                let c = build_rec(ctx, left, lb, first, depth + 1, &mut v, &mut s);
                 (v, c, s)
             },
             || {
                 let mut v = Vec::new();
                 let mut s = Shape::default();
-                let c = build_rec(ctx, right, first + mid as u32, depth + 1, &mut v, &mut s);
+                let c = build_rec(ctx, right, rb, first + mid as u32, depth + 1, &mut v, &mut s);
                 (v, c, s)
             },
         );
@@ -319,8 +315,8 @@ fn build_rec(
         let r = append(out, &mut rv, r);
         (l, r)
     } else {
-        let l = build_rec(ctx, left, first, depth + 1, out, shape);
-        let r = build_rec(ctx, right, first + mid as u32, depth + 1, out, shape);
+        let l = build_rec(ctx, left, lb, first, depth + 1, out, shape);
+        let r = build_rec(ctx, right, rb, first + mid as u32, depth + 1, out, shape);
         (l, r)
     };
     out[2 * node] = l;
@@ -365,28 +361,37 @@ fn bin_of(c2: f32, lo: f32, k: f32) -> usize {
 /// primitive, axis, last bin of the left side). `None` when every
 /// centroid is at one point (nothing to split by).
 fn sah_split(items: &[Item], bb: &Aabb, cb: &Aabb) -> Option<(f64, usize, usize)> {
-    let mut boxes = [[Aabb::EMPTY; BINS]; 3];
-    let mut counts = [[0u32; BINS]; 3];
-    let axes: Vec<usize> = (0..3)
-        .filter(|&a| {
-            let e = cb.hi[a] - cb.lo[a];
-            e > 0.0 && bin_scale(cb, a).is_finite()
-        })
-        .collect();
-    if axes.is_empty() {
+    let ok = |a: usize| cb.hi[a] - cb.lo[a] > 0.0 && bin_scale(cb, a).is_finite();
+    let axes = [ok(0), ok(1), ok(2)];
+    if axes == [false; 3] {
         return None;
     }
     let scale = [0, 1, 2].map(|a| bin_scale(cb, a));
-    for it in items {
-        for &a in &axes {
-            let b = bin_of(it.c2(a), cb.lo[a], scale[a]);
-            boxes[a][b].grow(&it.lo, &it.hi);
-            counts[a][b] += 1;
+    let bin = |chunk: &[Item]| {
+        let mut bins = Bins::default();
+        for it in chunk {
+            for a in 0..3 {
+                if axes[a] {
+                    let b = bin_of(it.c2(a), cb.lo[a], scale[a]);
+                    bins.boxes[a][b].grow(&it.lo, &it.hi);
+                    bins.counts[a][b] += 1;
+                }
+            }
         }
-    }
+        bins
+    };
+    let Bins { boxes, counts } = if items.len() >= PARALLEL_MIN * 16 {
+        use rayon::prelude::*;
+        items
+            .par_chunks(PARALLEL_MIN * 4)
+            .map(bin)
+            .reduce(Bins::default, Bins::merge)
+    } else {
+        bin(items)
+    };
     let parent = bb.half_area();
     let mut best: Option<(f64, usize, usize)> = None;
-    for &a in &axes {
+    for a in (0..3).filter(|&a| axes[a]) {
         // Right-hand sweep: area × count of bins b+1.. for each b.
         let mut right = [0f64; BINS];
         let mut acc = Aabb::EMPTY;
@@ -424,9 +429,83 @@ fn sah_split(items: &[Item], bb: &Aabb, cb: &Aabb) -> Option<(f64, usize, usize)
     best
 }
 
+/// The heuristic's bins on each axis: the union of their items' boxes and
+/// their counts.
+#[derive(Clone, Copy)]
+struct Bins {
+    boxes: [[Aabb; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Default for Bins {
+    fn default() -> Self {
+        Bins {
+            boxes: [[Aabb::EMPTY; BINS]; 3],
+            counts: [[0; BINS]; 3],
+        }
+    }
+}
+
+impl Bins {
+    fn merge(mut self, o: Bins) -> Bins {
+        for a in 0..3 {
+            for b in 0..BINS {
+                self.boxes[a][b].grow(&o.boxes[a][b].lo, &o.boxes[a][b].hi);
+                self.counts[a][b] += o.counts[a][b];
+            }
+        }
+        self
+    }
+}
+
+/// A node's box and its items' centroid box (twice the centroids).
+#[derive(Clone, Copy, Debug)]
+struct NodeBounds {
+    bb: Aabb,
+    cb: Aabb,
+}
+
+impl NodeBounds {
+    const EMPTY: NodeBounds = NodeBounds {
+        bb: Aabb::EMPTY,
+        cb: Aabb::EMPTY,
+    };
+    #[inline]
+    fn grow(&mut self, it: &Item) {
+        self.bb.grow(&it.lo, &it.hi);
+        self.cb.grow_point([it.c2(0), it.c2(1), it.c2(2)]);
+    }
+    fn merge(mut self, o: NodeBounds) -> NodeBounds {
+        self.bb.grow(&o.bb.lo, &o.bb.hi);
+        self.cb.grow(&o.cb.lo, &o.cb.hi);
+        self
+    }
+}
+
+/// The bounds of `items` (in parallel when there are many).
+fn node_bounds(items: &[Item]) -> NodeBounds {
+    let fold = |chunk: &[Item]| {
+        let mut nb = NodeBounds::EMPTY;
+        for it in chunk {
+            nb.grow(it);
+        }
+        nb
+    };
+    if items.len() >= PARALLEL_MIN * 16 {
+        use rayon::prelude::*;
+        items
+            .par_chunks(PARALLEL_MIN * 4)
+            .map(fold)
+            .reduce(|| NodeBounds::EMPTY, NodeBounds::merge)
+    } else {
+        fold(items)
+    }
+}
+
 /// Splits at the median centroid of the widest centroid axis (by index
-/// when every centroid is at one point); returns the left side's length.
-fn median_split(items: &mut [Item], cb: &Aabb) -> usize {
+/// when every centroid is at one point); returns the left side's length
+/// and both sides' bounds.
+fn median_split(items: &mut [Item], cb: &Aabb) -> (usize, NodeBounds, NodeBounds) {
     let mid = items.len() / 2;
     let axis = (0..3)
         .max_by(|&a, &b| (cb.hi[a] - cb.lo[a]).total_cmp(&(cb.hi[b] - cb.lo[b])))
@@ -434,23 +513,31 @@ fn median_split(items: &mut [Item], cb: &Aabb) -> usize {
     if cb.hi[axis] > cb.lo[axis] {
         items.select_nth_unstable_by(mid, |x, y| x.c2(axis).total_cmp(&y.c2(axis)));
     }
-    mid
+    (mid, node_bounds(&items[..mid]), node_bounds(&items[mid..]))
 }
 
 /// Moves the items for which `left` holds to the front, keeping nothing
-/// else in order; returns how many there are.
-fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> usize {
+/// else in order; returns how many there are and both sides' bounds
+/// (gathered on the way: no further pass over the items).
+fn partition(
+    items: &mut [Item],
+    left: impl Fn(&Item) -> bool,
+) -> (usize, NodeBounds, NodeBounds) {
+    let mut lb = NodeBounds::EMPTY;
+    let mut rb = NodeBounds::EMPTY;
     let mut i = 0;
     let mut j = items.len();
     while i < j {
         if left(&items[i]) {
+            lb.grow(&items[i]);
             i += 1;
         } else {
             j -= 1;
             items.swap(i, j);
+            rb.grow(&items[j]);
         }
     }
-    i
+    (i, lb, rb)
 }
 
 #[cfg(test)]
