@@ -305,7 +305,15 @@ fn build_rec(
             || {
                 let mut v = Vec::new();
                 let mut s = Shape::default();
-                let c = build_rec(ctx, right, rb, first + mid as u32, depth + 1, &mut v, &mut s);
+                let c = build_rec(
+                    ctx,
+                    right,
+                    rb,
+                    first + mid as u32,
+                    depth + 1,
+                    &mut v,
+                    &mut s,
+                );
                 (v, c, s)
             },
         );
@@ -519,10 +527,7 @@ fn median_split(items: &mut [Item], cb: &Aabb) -> (usize, NodeBounds, NodeBounds
 /// Moves the items for which `left` holds to the front, keeping nothing
 /// else in order; returns how many there are and both sides' bounds
 /// (gathered on the way: no further pass over the items).
-fn partition(
-    items: &mut [Item],
-    left: impl Fn(&Item) -> bool,
-) -> (usize, NodeBounds, NodeBounds) {
+fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> (usize, NodeBounds, NodeBounds) {
     let mut lb = NodeBounds::EMPTY;
     let mut rb = NodeBounds::EMPTY;
     let mut i = 0;

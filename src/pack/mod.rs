@@ -724,9 +724,50 @@ pub fn choose_structure(settings: &Settings, bounds: &[Bounds]) -> (Accel, bool)
     }
 }
 
-/// `Accel::Auto`'s rule (docs/method.md, "Choosing the structure").
-pub fn auto_structure(_bounds: &[Bounds]) -> Accel {
-    Accel::Bvh
+/// `Accel::Auto` takes the grid above this many finite primitives: the
+/// BVH's build (about twice the grid's) then outweighs what it saves at
+/// usual image sizes (docs/method.md, "Choosing the structure").
+pub const AUTO_BVH_MAX_PRIMS: usize = 1 << 16;
+
+/// `Accel::Auto` takes the grid when the primitives' boxes fill at least
+/// this share of their union's box (`fill_ratio`): an evenly filled scene,
+/// which the grid's uniform cells suit (docs/method.md).
+pub const AUTO_GRID_FILL: f64 = 0.5;
+
+/// The sum of the primitives' box volumes over their union's box volume
+/// (overlaps counted each time). Each extent, of the union and of every
+/// box, is taken as at least 1/1000 of the union's largest, as the grid's
+/// heuristic does, so flat scenes and flat primitives still compare.
+pub fn fill_ratio(bounds: &[Bounds]) -> f64 {
+    let all = bounds.iter().fold(Bounds::EMPTY, |a, b| a.union(b));
+    let ext = |b: &Bounds| [0, 1, 2].map(|i| (b.hi[i] - b.lo[i]).max(0.0));
+    let e = ext(&all);
+    let floor = e.iter().cloned().fold(0.0, f64::max) / 1000.0;
+    if !(floor > 0.0) || !floor.is_finite() {
+        return 1.0; // every primitive at one point: nothing to separate
+    }
+    let vol = |e: [f64; 3]| e.iter().map(|x| x.max(floor) / floor).product::<f64>();
+    let whole = vol(e);
+    bounds.iter().map(|b| vol(ext(b))).sum::<f64>() / whole
+}
+
+/// `Accel::Auto`'s rule (docs/method.md, "Choosing the structure"): the
+/// BVH, except for large scenes and evenly filled ones, where the grid
+/// was measured faster.
+pub fn auto_structure(bounds: &[Bounds]) -> Accel {
+    if bounds.len() > AUTO_BVH_MAX_PRIMS {
+        return Accel::Grid;
+    }
+    let fill = fill_ratio(bounds);
+    log::debug!(
+        "auto structure: {} finite primitives, fill ratio {fill:.3}",
+        bounds.len()
+    );
+    if fill >= AUTO_GRID_FILL {
+        Accel::Grid
+    } else {
+        Accel::Bvh
+    }
 }
 
 /// Packs a scene for rendering with `settings`, or refuses it by estimate
@@ -1381,6 +1422,46 @@ mod tests {
         assert_eq!(p.globals.flags[0], FLAG_SPD_COUNTING);
         p.set_counting(Counting::Traced);
         assert_eq!(p.globals.flags[0], 0);
+    }
+
+    /// `auto` takes the BVH for clustered scenes (the SPD's, a
+    /// sphereflake), the grid for an evenly filled field of spheres and
+    /// above `AUTO_BVH_MAX_PRIMS` primitives.
+    #[test]
+    fn auto_picks_by_fill_and_size() {
+        let auto = |s: &Scene| pack(s, &Settings::default()).unwrap().structure();
+        assert_eq!(auto(&crate::gen::random_spheres(2000, 3)), Accel::Grid);
+        assert_eq!(auto(&crate::gen::sphereflake(2)), Accel::Bvh);
+        for spd in [
+            crate::gen::spd::SpdScene::Teapot,
+            crate::gen::spd::SpdScene::Tree,
+        ] {
+            let s = crate::gen::spd::generate(spd, None).unwrap();
+            assert_eq!(auto(&s), Accel::Bvh, "{spd:?}");
+        }
+        // Sparse (fill far below AUTO_GRID_FILL) but too many.
+        // Tiny boxes on a lattice of spacing 10.
+        let tiny = |i: usize| {
+            let p = [i % 64, (i / 64) % 64, i / 4096].map(|k| 10.0 * k as f64);
+            Bounds {
+                lo: p,
+                hi: p.map(|x| x + 1e-3),
+            }
+        };
+        let few: Vec<Bounds> = (0..1000).map(tiny).collect();
+        assert!(fill_ratio(&few) < AUTO_GRID_FILL);
+        assert_eq!(auto_structure(&few), Accel::Bvh);
+        let many: Vec<Bounds> = (0..AUTO_BVH_MAX_PRIMS + 1).map(tiny).collect();
+        assert_eq!(auto_structure(&many), Accel::Grid);
+        // Every primitive at one point: nothing for either to separate.
+        let pile = vec![
+            Bounds {
+                lo: [1.0; 3],
+                hi: [1.0; 3]
+            };
+            10
+        ];
+        assert_eq!(fill_ratio(&pile), 1.0);
     }
 
     /// `--accel` picks the structure the tracers walk; `--grid` under
