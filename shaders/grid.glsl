@@ -1,16 +1,16 @@
 // 3D-DDA (Amanatides & Woo) through the uniform voxel grid: twin of
 // src/trace/grid.rs.
 //
-// Closest hit keeps the best hit found so far across cells (a primitive's
-// hit may lie beyond the cell that referenced it) and stops once that hit
-// lies inside the current cell. Each primitive is tested once per ray: a
-// primitive whose cell range holds the previous cell was already tested
-// there and is skipped. (The Rust `Work` counters are not kept here; its
-// shadow cache is.)
+// One traversal serves both queries (query.glsl). The closest hit keeps
+// the best hit found so far across cells (a primitive's hit may lie beyond
+// the cell that referenced it) and stops once that hit lies inside the
+// current cell; a shadow feeler's length plays the part of that hit. Each
+// primitive is tested once per ray: a primitive whose cell range holds the
+// previous cell was already tested there and is skipped.
 #ifndef WHITTED_GRID_GLSL
 #define WHITTED_GRID_GLSL
 
-#include "intersect.glsl"
+#include "query.glsl"
 
 // Traversal state: the current cell and where the ray leaves it on each
 // axis.
@@ -204,25 +204,6 @@ bool seen_before(Prim prim, Dda dda) {
     return dda.prev_coord >= lo && dda.prev_coord <= hi;
 }
 
-// Shadow cache (Rust: Work::shadow_cache): per light, 1 + the index of the
-// opaque primitive that last blocked a feeler to it (0: none). It never
-// changes a result; reset per invocation (shadow_cache_reset).
-uint shadow_cache[SHADOW_CACHE_LIGHTS];
-
-// lavapipe (llvmpipe 22.3) gives each SIMD group of invocations a budget
-// of 65535 loop iterations for the whole shader, then silently runs every
-// loop once (LP_MAX_TGSI_LOOP_ITERATIONS). Each loop below that ends
-// without reaching its own end counts here; render.comp adds them up and
-// the host refuses an image in which any loop was cut. (GPU only: the CPU
-// has no such budget.)
-uint loops_cut = 0u;
-
-void shadow_cache_reset() {
-    for (uint i = 0u; i < SHADOW_CACHE_LIGHTS; i++) {
-        shadow_cache[i] = 0u;
-    }
-}
-
 uint cell_index(ivec3 c) {
     uvec4 d = g.grid_dims;
     return uint(c.x) + d.x * (uint(c.y) + d.y * uint(c.z));
@@ -235,26 +216,17 @@ uint dda_max_cells() {
     return g.grid_dims.x + g.grid_dims.y + g.grid_dims.z;
 }
 
-// The nearest hit along the ray with t < tmax: the hit and the primitive index.
-// (Loops end with `break`, never `return`: returns from inside nested
-// loops miscompiled on llvmpipe 22.3 when a SIMD group's lanes diverge.)
-bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_prim) {
-    float best_t = tmax;
-    bool found = false;
-    best_prim = 0xFFFFFFFFu;
-    best = Hit(0.0, 0.0, 0.0);
-    for (uint i = g.counts.x; i < g.counts.y; i++) {
-        Hit h;
-        if (intersect(prims[i], ray, pre, best_t, h)) {
-            best_t = h.t;
-            best = h;
-            best_prim = i;
-            found = true;
-        }
-    }
+// Walks the grid for query q (query.glsl): every primitive listed in the
+// cells the ray crosses, each once, until the query is done, the ray
+// leaves the grid, or q.t (the best hit so far, or the feeler's length)
+// lies inside the current cell. The unbounded primitives are the
+// caller's (accel.glsl). (Loops end with `break`, never `return`: returns
+// from inside nested loops miscompiled on llvmpipe 22.3 when a SIMD
+// group's lanes diverge.)
+void grid_traverse(Ray ray, RayPre pre, inout Query q) {
     Dda dda;
-    if (!dda_setup(ray, pre, best_t, dda)) {
-        return found;
+    if (!dda_setup(ray, pre, q.t, dda)) {
+        return;
     }
     uint max_cells = dda_max_cells();
     bool ended = false;
@@ -266,7 +238,7 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
         if (skip >= 2) {
             int jaxis;
             float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
-            if (best_t <= t_jump || t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
+            if (q.t <= t_jump || t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
                 ended = true;
                 break;
             }
@@ -281,18 +253,14 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
             if (seen_before(prim, dda)) {
                 continue;
             }
-            Hit h;
-            if (intersect(prim, ray, pre, best_t, h)) {
-                best_t = h.t;
-                best = h;
-                best_prim = r;
-                found = true;
+            if (query_prim(q, prim, r, ray, pre)) {
+                break;
             }
         }
-        if (k != end) {
+        if (!q.done && k != end) {
             loops_cut += 1u;
         }
-        if (best_t <= t_exit || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
+        if (q.done || q.t <= t_exit || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
             ended = true;
             break;
         }
@@ -300,87 +268,6 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
     if (!ended) {
         loops_cut += 1u;
     }
-    return found;
-}
-
-// Light reaching the end of a shadow feeler of length dist: every primitive
-// crossing it multiplies by its k_t (opaque ones give zero). Shadow feelers
-// are not refracted. `light` indexes the shadow cache.
-vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
-    uint cached = light < SHADOW_CACHE_LIGHTS ? shadow_cache[light] : 0u;
-    if (cached != 0u) {
-        Hit hc;
-        if (intersect(prims[cached - 1u], ray, pre, dist, hc)) {
-            return vec3(0.0);
-        }
-    }
-    precise vec3 trans = vec3(1.0);
-    bool blocked = false;
-    for (uint i = g.counts.x; i < g.counts.y && !blocked; i++) {
-        Prim prim = prims[i];
-        Hit h;
-        if (intersect(prim, ray, pre, dist, h)) {
-            vec3 kt = materials[prim_material(prim)].kt.xyz;
-            trans = trans * kt;
-            if (max_elem(kt) <= 0.0 && light < SHADOW_CACHE_LIGHTS) {
-                shadow_cache[light] = i + 1u;
-            }
-            blocked = max_elem(trans) <= 0.0;
-        }
-    }
-    Dda dda;
-    if (!blocked && dda_setup(ray, pre, dist, dda)) {
-        uint max_cells = dda_max_cells();
-        bool ended = false;
-        for (uint visited = 0u; visited < max_cells; visited++) {
-            uint ci = cell_index(dda.cell);
-            uint start = cell_start[ci];
-            uint end = cell_start[ci + 1u];
-            int skip = start == end ? int(cell_skip(ci)) : 0;
-            if (skip >= 2) {
-                int jaxis;
-                float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
-                if (t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {
-                    ended = true;
-                    break;
-                }
-                continue;
-            }
-            int axis;
-            float t_exit = dda_exit(dda, axis);
-            uint k = start;
-            for (; k < end; k++) {
-                uint r = refs[k];
-                Prim prim = prims[r];
-                if (seen_before(prim, dda)) {
-                    continue;
-                }
-                Hit h;
-                if (intersect(prim, ray, pre, dist, h)) {
-                    vec3 kt = materials[prim_material(prim)].kt.xyz;
-                    trans = trans * kt;
-                    if (max_elem(kt) <= 0.0 && light < SHADOW_CACHE_LIGHTS) {
-                        shadow_cache[light] = r + 1u;
-                    }
-                    if (max_elem(trans) <= 0.0) {
-                        blocked = true;
-                        break;
-                    }
-                }
-            }
-            if (!blocked && k != end) {
-                loops_cut += 1u;
-            }
-            if (blocked || t_exit >= dda.t_end || !dda_advance(dda, axis)) {
-                ended = true;
-                break;
-            }
-        }
-        if (!ended) {
-            loops_cut += 1u;
-        }
-    }
-    return blocked ? vec3(0.0) : trans;
 }
 
 #endif

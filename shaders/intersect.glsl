@@ -402,7 +402,10 @@ bool quadric(Prim prim, Ray ray, float tmax, out Hit h) {
 }
 
 // Open truncated cone (cylinder when the radii are equal) around a unit
-// axis from base (radius r0) to base + length·axis (radius r1).
+// axis from base (radius r0) to base + length·axis (radius r1). Solved from
+// o' = o + t_c·d, the ray's point nearest the cone's middle, and
+// t = t_c + s: from the ray's own origin the constant term cancelled
+// catastrophically for a thin cone far away (src/trace/intersect.rs).
 bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     vec3 base = prim.a.xyz;
     vec3 axis = prim.b.xyz;
@@ -410,7 +413,9 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     float r1 = prim.b.w;
     float len = prim.c.x;
     precise float k = (r1 - r0) / len;
-    precise vec3 w = ray.o - base;
+    precise vec3 mid = base + axis * (len * 0.5);
+    precise float tc = dot3(mid - ray.o, ray.d);
+    precise vec3 w = (ray.o + ray.d * tc) - base;
     precise float dv = dot3(ray.d, axis);
     precise float wv = dot3(w, axis);
     precise vec3 pp = w - axis * wv;
@@ -425,8 +430,9 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
         return false;
     }
     for (int j = 0; j < 2; j++) {
-        float t = j == 0 ? s0 : s1;
-        precise float hgt = wv + t * dv;
+        float s = j == 0 ? s0 : s1;
+        precise float t = tc + s;
+        precise float hgt = wv + s * dv;
         if (t > 0.0 && t < tmax && hgt >= 0.0 && hgt <= len) {
             h = hit_at(t);
             return true;

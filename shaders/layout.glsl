@@ -21,7 +21,7 @@ struct Globals {
     uvec4 image;      // x: width, y: height, z: samples per pixel, w: sampling mode
     uvec4 trace;      // x: max depth, y: feature bits, z, w: strata in x, y
     vec4 params;      // x: min weight, y: surface offset
-    uvec4 flags;      // x: counting flags (FLAG_*)
+    uvec4 flags;      // x: counting flags (FLAG_*), y: ACCEL_*, z: BVH interior nodes
 };
 
 // One primitive, 64 bytes; kind_mat = kind (low 4 bits) | material << 4.
@@ -55,6 +55,16 @@ struct Light {
     vec4 falloff; // c1, c2, c3 of f(d) = min(1, 1/(c1 + c2 d + c3 d²))
 };
 
+// One child of an interior BVH node (src/pack/layout.rs): bvh[2k] and
+// bvh[2k + 1] are interior node k's children. count > 0: a leaf of count
+// primitives from prims[link]; count = 0: the interior node link.
+struct BvhChild {
+    vec3 lo;
+    uint link;
+    vec3 hi;
+    uint count;
+};
+
 layout(set = 0, binding = 0, std430) readonly buffer GlobalsBuf { Globals g; };
 layout(set = 0, binding = 1, std430) readonly buffer PrimsBuf { Prim prims[]; };
 layout(set = 0, binding = 2, std430) readonly buffer ExtraBuf { vec4 extra[]; };
@@ -62,6 +72,8 @@ layout(set = 0, binding = 3, std430) readonly buffer MaterialsBuf { Material mat
 layout(set = 0, binding = 4, std430) readonly buffer LightsBuf { Light lights[]; };
 layout(set = 0, binding = 5, std430) readonly buffer CellStartBuf { uint cell_start[]; };
 layout(set = 0, binding = 6, std430) readonly buffer RefsBuf { uint refs[]; };
+// Binding 11 (7 to 10 are the kernels' own): the BVH, when it is in use.
+layout(set = 0, binding = 11, std430) readonly buffer BvhBuf { BvhChild bvh[]; };
 
 uvec3 cell_unpack(uint c) { return uvec3(c & 1023u, (c >> 10) & 1023u, (c >> 20) & 1023u); }
 

@@ -4,7 +4,7 @@
 #ifndef WHITTED_SHADE_GLSL
 #define WHITTED_SHADE_GLSL
 
-#include "grid.glsl"
+#include "accel.glsl"
 
 // Ray counts as the SPD defines them (Rust: trace::RayStats), per
 // invocation, incremented at exactly the places the CPU increments them.

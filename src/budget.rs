@@ -280,6 +280,8 @@ pub enum What {
     /// The grid: per-cell offsets and empty-space distances, and the
     /// references (one per primitive per cell it overlaps).
     Grid,
+    /// The BVH: its build's working arrays and its nodes.
+    Bvh,
 }
 
 impl What {
@@ -290,6 +292,7 @@ impl What {
             What::Scene => "the loaded scene needs",
             What::Primitives => "the packed primitives need",
             What::Grid => "the grid needs",
+            What::Bvh => "the BVH needs",
         }
     }
     /// The unit of the count ("for 2.4 G references").
@@ -299,6 +302,7 @@ impl What {
             What::Scene => "objects",
             What::Primitives => "primitives",
             What::Grid => "references",
+            What::Bvh => "primitives",
         }
     }
 }
@@ -405,6 +409,9 @@ pub struct Need {
     pub refs: u64,
     /// The grid's resolution came from `--grid` (for the refusal's hint).
     pub explicit_grid: bool,
+    /// The BVH is built over the `bounded` primitives instead of the grid
+    /// (then `cells` and `refs` stay 0).
+    pub bvh: bool,
 }
 
 impl Need {
@@ -436,12 +443,33 @@ impl Need {
             .saturating_add(self.refs.saturating_mul(REF_BYTES))
     }
 
+    /// Bytes of the BVH's nodes that stay for the render (at most).
+    pub fn bvh_bytes(&self) -> u64 {
+        if self.bvh {
+            self.bounded
+                .saturating_mul(crate::pack::bvh::BYTES_PER_PRIM)
+        } else {
+            0
+        }
+    }
+
+    /// Bytes of the BVH's build (its working arrays and the nodes).
+    fn bvh_build_bytes(&self) -> u64 {
+        if self.bvh {
+            self.bounded
+                .saturating_mul(crate::pack::bvh::BUILD_BYTES_PER_PRIM)
+        } else {
+            0
+        }
+    }
+
     /// The packed scene's bytes that stay for the render.
     fn packed_bytes(&self) -> u64 {
         self.prims
             .saturating_mul(PRIM_BYTES)
             .saturating_add(self.extra.saturating_mul(EXTRA_BYTES))
             .saturating_add(self.grid_bytes())
+            .saturating_add(self.bvh_bytes())
     }
 
     /// Bytes at the peak of packing: the loaded scene, the builder's
@@ -453,6 +481,7 @@ impl Need {
             .saturating_add(self.extra.saturating_mul(2 * EXTRA_BYTES))
             .saturating_add(self.cells.saturating_mul(CELL_BUILD_BYTES))
             .saturating_add(self.refs.saturating_mul(2 * REF_BYTES))
+            .saturating_add(self.bvh_build_bytes())
     }
 
     /// Bytes at the peak of rendering: the packed scene and the frame.
@@ -467,7 +496,7 @@ impl Need {
 
     /// Each part at its own peak (for naming the largest).
     pub fn items(&self) -> Vec<Item> {
-        vec![
+        let mut items = vec![
             Item {
                 what: What::Image,
                 count: self.lattice(),
@@ -495,7 +524,15 @@ impl Need {
                     .saturating_mul(CELL_BUILD_BYTES)
                     .saturating_add(self.refs.saturating_mul(2 * REF_BYTES)),
             },
-        ]
+        ];
+        if self.bvh {
+            items.push(Item {
+                what: What::Bvh,
+                count: self.bounded,
+                bytes: self.bvh_build_bytes(),
+            });
+        }
+        items
     }
 
     /// The most references a grid of `cells` cells may have within
@@ -516,9 +553,10 @@ impl Need {
 }
 
 /// Bytes of each buffer the GPU backend binds for `p` with `lattice`
-/// output samples (one vec4 each), in binding order; the GPU checks each
-/// against `maxStorageBufferRange` and their sum against its heap.
-pub fn gpu_buffers(p: &crate::pack::Packed, lattice: u64) -> [(&'static str, u64); 8] {
+/// output samples (one vec4 each), in binding order (the BVH's is 11);
+/// the GPU checks each against `maxStorageBufferRange` and their sum
+/// against its heap.
+pub fn gpu_buffers(p: &crate::pack::Packed, lattice: u64) -> [(&'static str, u64); 9] {
     fn size<T>(s: &[T]) -> u64 {
         std::mem::size_of_val(s) as u64
     }
@@ -530,6 +568,7 @@ pub fn gpu_buffers(p: &crate::pack::Packed, lattice: u64) -> [(&'static str, u64
         ("lights", size(&p.lights)),
         ("cell_start", size(&p.cell_start)),
         ("refs", size(&p.refs)),
+        ("bvh", size(&p.bvh)),
         ("output samples", lattice.saturating_mul(16)),
     ]
 }

@@ -22,6 +22,13 @@ pub const GRID_MAX_DIM: u32 = 1023;
 pub const SKIP_MAX: u32 = 15;
 /// Target cells per finite primitive for the grid heuristic.
 pub const GRID_DENSITY: f32 = 3.0;
+/// Entries of the BVH traversal stack. The build keeps every interior
+/// node at depth < BVH_STACK_SIZE (the root at depth 0), and a traversal
+/// pushes at most one child per interior node on its path.
+pub const BVH_STACK_SIZE: u32 = 64;
+/// Acceleration structures (`Globals::flags.y`): which one the tracers walk.
+pub const ACCEL_GRID: u32 = 0;
+pub const ACCEL_BVH: u32 = 1;
 /// Primitive kinds (low 4 bits of `Prim::kind_mat`).
 pub const KIND_SPHERE: u32 = 0;
 pub const KIND_PLANE: u32 = 1;

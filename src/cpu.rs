@@ -4,8 +4,8 @@
 
 use crate::constants::SAMPLING_CORNERS;
 use crate::pack::Packed;
-use crate::trace::grid::Work;
 use crate::trace::math::{Ray, Real, V3};
+use crate::trace::query::Work;
 use crate::trace::sample::{eye_dir, sample_pos};
 use crate::trace::tree::trace_ray;
 use crate::trace::{RayStats, SceneView};
@@ -93,8 +93,7 @@ pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> F
             i += x1 - x0;
         }
         stats.add(st);
-        work.tests += wk.tests;
-        work.cells += wk.cells;
+        work.add(wk);
     }
     drop(tiles);
     let pixels = if corners {

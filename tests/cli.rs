@@ -64,7 +64,21 @@ fn renders_png_with_stats() {
         assert!(j["seconds"][k].as_f64().unwrap() >= 0.0);
     }
     assert_eq!(j["grid"]["cells"].as_array().unwrap().len(), 3);
-    assert!(j["grid"]["refs"].as_u64().unwrap() >= 1);
+    // The structure in use, and the work it did.
+    let work = &j["work"];
+    match j["accel"]["structure"].as_str().unwrap() {
+        "grid" => {
+            assert!(j["grid"]["refs"].as_u64().unwrap() >= 1);
+            assert!(work["cells_visited"].as_u64().unwrap() >= 1);
+        }
+        "bvh" => {
+            assert!(j["accel"]["nodes"].as_u64().unwrap() >= 1);
+            assert!(work["nodes_visited"].as_u64().unwrap() >= 1);
+        }
+        s => panic!("structure {s}"),
+    }
+    assert!(j["accel"]["build_seconds"].as_f64().unwrap() >= 0.0);
+    assert!(work["intersection_tests"].as_u64().unwrap() >= 1);
 }
 
 #[test]

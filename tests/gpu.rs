@@ -15,10 +15,12 @@ use std::path::PathBuf;
 use std::time::Duration;
 use whitted::cpu::{self, Frame};
 use whitted::gpu::loops::{self, Driver, LoopLoad};
-use whitted::gpu::{Fault, Gpu, GpuError, GpuOptions, PipelineCache, ProbeItem, ProbeResult};
+use whitted::gpu::{
+    DeviceKind, Fault, Gpu, GpuError, GpuOptions, PipelineCache, ProbeItem, ProbeResult,
+};
 use whitted::metrics::{self, Tolerance};
-use whitted::pack::layout::{Globals, Light, Material, Prim};
-use whitted::pack::{Packed, Sampling, Settings};
+use whitted::pack::layout::{BvhChild, Globals, Light, Material, Prim};
+use whitted::pack::{Accel, Packed, Sampling, Settings};
 
 // ------------------------------------------------------------ SPIR-V layout
 
@@ -203,6 +205,17 @@ fn shader_layout_matches_rust() {
                 "{kernel}.comp binding {b}"
             );
         }
+        // BvhChild packs a vec3 and a uint into each 16 bytes.
+        assert_eq!(
+            r.layout("BvhChild"),
+            fields!(BvhChild: lo, link, hi, count),
+            "{kernel}.comp: struct BvhChild"
+        );
+        assert_eq!(
+            r.binding_array(11),
+            ("BvhChild".into(), size_of::<BvhChild>() as u32),
+            "{kernel}.comp binding 11"
+        );
         if kernel == "render" {
             assert_eq!(r.binding_array(7).1, 16, "render.comp samples");
             assert_eq!(r.binding_array(8).1, 4, "render.comp counts");
@@ -266,14 +279,30 @@ fn scene_files() -> Vec<PathBuf> {
     v
 }
 
+/// Every bundled scene, with each structure: the GPU's image is the
+/// mirror's within `Tolerance::default()` (pow and exp are the driver's:
+/// docs/gpu.md), and on a CPU device (lavapipe) the ray counts are equal.
 #[test]
 fn every_scene_matches_the_cpu_mirror() {
     for path in scene_files() {
-        let p = common::load(&path, &common::small(96, 72));
-        let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
-            return;
-        };
-        assert_close(&path.file_name().unwrap().to_string_lossy(), &c, &g);
+        for accel in [Accel::Grid, Accel::Bvh] {
+            let p = common::load(
+                &path,
+                &Settings {
+                    accel,
+                    ..common::small(96, 72)
+                },
+            );
+            assert_eq!(p.structure(), accel);
+            let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
+                return;
+            };
+            let name = format!("{} {accel:?}", path.file_name().unwrap().to_string_lossy());
+            assert_close(&name, &c, &g);
+            if common::gpu().is_some_and(|d| d.info().kind == DeviceKind::Cpu) {
+                assert_eq!(c.stats, g.stats, "{name}: ray counts");
+            }
+        }
     }
 }
 

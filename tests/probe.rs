@@ -8,10 +8,11 @@ mod common;
 
 use whitted::constants::*;
 use whitted::gpu::{ProbeItem, ProbeMode, ProbeResult};
-use whitted::pack::{Packed, Settings};
-use whitted::trace::grid::{closest_hit, transmittance, Work};
+use whitted::pack::{Accel, Packed, Settings};
+use whitted::trace::accel::{closest_hit, transmittance};
 use whitted::trace::intersect::{intersect, normals, solve_quadratic, RayPre};
 use whitted::trace::math::{v3, Ray, V3};
+use whitted::trace::query::Work;
 use whitted::trace::sample::{eye_dir, hash, rand01, sample_pos};
 use whitted::trace::shade::{reflect_dir, refract_dir};
 use whitted::trace::tree::trace_ray;
@@ -161,13 +162,16 @@ struct TestScene {
     packed: Packed,
 }
 
+/// The probe scene on the heuristic's grid, two explicit grids and the
+/// BVH, and the bundled scenes on each structure.
 fn scenes() -> Vec<TestScene> {
     let mut out = Vec::new();
     let base = common::small(64, 48);
-    for (name, grid) in [
-        ("probe", None),
-        ("probe 1x1x1", Some([1, 1, 1])),
-        ("probe 7x5x3", Some([7, 5, 3])),
+    for (name, grid, accel) in [
+        ("probe", None, Accel::Grid),
+        ("probe 1x1x1", Some([1, 1, 1]), Accel::Grid),
+        ("probe 7x5x3", Some([7, 5, 3]), Accel::Grid),
+        ("probe bvh", None, Accel::Bvh),
     ] {
         out.push(TestScene {
             name: name.into(),
@@ -175,16 +179,25 @@ fn scenes() -> Vec<TestScene> {
                 PROBE_SCENE,
                 &Settings {
                     grid,
+                    accel,
                     ..base.clone()
                 },
             ),
         });
     }
     for s in ["showcase", "mesh", "quadric"] {
-        out.push(TestScene {
-            name: s.into(),
-            packed: common::load(&common::repo().join(format!("scenes/{s}.toml")), &base),
-        });
+        for accel in [Accel::Grid, Accel::Bvh] {
+            out.push(TestScene {
+                name: format!("{s} {accel:?}"),
+                packed: common::load(
+                    &common::repo().join(format!("scenes/{s}.toml")),
+                    &Settings {
+                        accel,
+                        ..base.clone()
+                    },
+                ),
+            });
+        }
     }
     out
 }
@@ -692,7 +705,12 @@ fn intersect_routines_match() {
         return;
     }
     let mut r = Rng(1);
-    for sc in scenes().iter().take(1).chain(scenes().iter().skip(3)) {
+    // The primitives do not depend on the structure: one packing of each.
+    let all = scenes();
+    for sc in all
+        .iter()
+        .filter(|s| s.name == "probe" || s.name.ends_with("Grid"))
+    {
         let items = intersect_items(&sc.packed, &mut r, 160);
         let Some(res) = run(&sc.packed, ProbeMode::Intersect, &items) else {
             return;
@@ -905,7 +923,7 @@ fn sampling_matches() {
 }
 
 #[test]
-fn grid_closest_hit_matches() {
+fn closest_hit_matches() {
     if common::gpu().is_none() {
         return;
     }

@@ -7,9 +7,10 @@ use std::path::PathBuf;
 use whitted::cpu::{self, Frame};
 use whitted::pack::{self, Packed, Settings};
 use whitted::scene::{self, Camera, Light, Material, Mesh, Object, Scene, Shape};
-use whitted::trace::grid::{closest_hit, closest_hit_brute, Work};
+use whitted::trace::accel::{closest_hit, closest_hit_brute};
 use whitted::trace::intersect::RayPre;
 use whitted::trace::math::{v3, Ray};
+use whitted::trace::query::Work;
 use whitted::trace::SceneView;
 
 fn v(x: f64, y: f64, z: f64) -> DVec3 {

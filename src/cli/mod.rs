@@ -253,6 +253,7 @@ impl Bar {
             crate::pack::Stage::Sort => "ordering primitives",
             crate::pack::Stage::Count => "counting grid references",
             crate::pack::Stage::File => "filing the grid",
+            crate::pack::Stage::Bvh => "building the BVH",
         });
         self.set(done, total);
     }

@@ -1,7 +1,7 @@
 //! Options shared by `render` and `validate`, and their parsers.
 
 use crate::gpu::{self, GpuOptions, PipelineCache};
-use crate::pack::{Counting, Preset, Sampling, Settings};
+use crate::pack::{Accel, Counting, Preset, Sampling, Settings};
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -62,6 +62,12 @@ pub struct RenderOpts {
     /// Override the voxel grid resolution, e.g. 64x64x32.
     #[arg(long, value_parser = parse_grid, value_name = "NXxNYxNZ")]
     pub grid: Option<[u32; 3]>,
+    /// The acceleration structure: the uniform voxel grid, a
+    /// bounding-volume hierarchy (surface-area heuristic), or one chosen
+    /// per scene by the rule in docs/method.md [default: auto; with
+    /// --grid: grid].
+    #[arg(long, value_enum)]
+    pub accel: Option<Accel>,
     /// Memory the run may use: a size (512M, 4GiB, 1.5G; K/M/G/T are
     /// powers of 1024, KB/MB/GB/TB of 1000) or a share of physical memory
     /// (75%). A run whose estimate is over it is refused before anything
@@ -88,6 +94,7 @@ impl RenderOpts {
             spp: self.spp.unwrap_or(base.spp),
             sampling: self.sampling.unwrap_or(base.sampling),
             grid: self.grid.or(base.grid),
+            accel: self.accel.unwrap_or(base.accel),
             budget: self.memory_limit.unwrap_or(base.budget),
         }
     }

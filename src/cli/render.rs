@@ -115,7 +115,12 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
             "height": frame.height,
             "rays": frame.stats,
             "counting": packed.counting(),
-            "work": { "intersection_tests": frame.work.tests, "cells_visited": frame.work.cells },
+            "work": {
+                "intersection_tests": frame.work.tests,
+                "cells_visited": frame.work.cells,
+                "nodes_visited": frame.work.nodes,
+            },
+            "accel": packed.accel,
             "seconds": {
                 "load": t_load,
                 "build": t_build,
@@ -139,19 +144,29 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         .map_err(user)?;
     }
     if !ui.quiet {
+        let accel = &packed.accel;
+        let structure = match accel.structure {
+            crate::pack::Accel::Bvh => format!(
+                "BVH of {} nodes, depth {}, built in {:.3} s",
+                accel.nodes, accel.depth, accel.build_seconds
+            ),
+            _ => format!(
+                "grid {}x{}x{}, {} refs, built in {:.3} s",
+                packed.grid.cells[0],
+                packed.grid.cells[1],
+                packed.grid.cells[2],
+                packed.grid.refs,
+                packed.grid.seconds,
+            ),
+        };
         eprintln!(
-            "{}: {}x{} on {} in {:.3} s ({:.2} Mrays/s; grid {}x{}x{}, {} refs, built in {:.3} s)",
+            "{}: {}x{} on {} in {:.3} s ({:.2} Mrays/s; {structure})",
             dest.display(),
             frame.width,
             frame.height,
             r.device,
             frame.seconds,
             frame.stats.total() as f64 / frame.seconds.max(1e-9) / 1e6,
-            packed.grid.cells[0],
-            packed.grid.cells[1],
-            packed.grid.cells[2],
-            packed.grid.refs,
-            packed.grid.seconds,
         );
     }
     Ok(0)

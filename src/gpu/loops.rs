@@ -6,15 +6,16 @@
 //!
 //! The shader's loops, innermost first: a polygon's vertices (per
 //! intersection test), a grid cell's primitives, the cells a ray steps
-//! through, the unbounded primitives (per ray and per feeler), the lights
+//! through (or a BVH leaf's primitives and the nodes), the unbounded primitives (per ray and per feeler), the lights
 //! (per shaded point, each with a feeler), the rays of a sample's ray tree,
 //! a pixel's samples.
 
 use crate::constants::{FEAT_REFLECT, FEAT_REFRACT, FEAT_TRIANGLE, KIND_POLYGON, SAMPLING_CORNERS};
 use crate::pack::Packed;
-use crate::trace::grid::{closest_hit, Work};
+use crate::trace::accel::closest_hit;
 use crate::trace::intersect::RayPre;
 use crate::trace::math::{Ray, V3};
+use crate::trace::query::Work;
 use crate::trace::sample::{eye_dir, sample_pos};
 use crate::trace::SceneView;
 
@@ -147,6 +148,9 @@ pub struct LoopLoad {
     pub unbounded: u32,
     pub cell_refs: u32,
     pub dims: [u32; 3],
+    /// With the BVH: a typical walk's steps, two per level of the
+    /// deepest path (a node, and a pushed child popped) plus one leaf.
+    pub bvh_steps: u32,
 }
 
 impl LoopLoad {
@@ -193,16 +197,26 @@ impl LoopLoad {
             } else {
                 [0; 3]
             },
+            bvh_steps: if p.structure() == crate::pack::Accel::Bvh && g.flags[2] > 0 {
+                2 * (p.accel.depth + 1) + p.accel.max_leaf
+            } else {
+                0
+            },
         }
     }
 
     /// Iterations one traversal (a ray or a feeler) makes at most: the
-    /// unbounded primitives, the cells, one cell's list, the largest
-    /// polygon once.
+    /// unbounded primitives, the cells, one cell's list (or a BVH walk),
+    /// the largest polygon once.
     fn traversal(&self) -> f64 {
         let cells: u32 = self.dims.iter().sum();
         let v = self.polygon.map_or(0, |(_, n, _)| n);
-        (self.unbounded as f64 + cells as f64 + self.cell_refs as f64 + v as f64).max(1.0)
+        (self.unbounded as f64
+            + cells as f64
+            + self.cell_refs as f64
+            + self.bvh_steps as f64
+            + v as f64)
+            .max(1.0)
     }
 
     /// A (loose) upper bound of the loop iterations of one invocation: per

@@ -438,18 +438,17 @@ pub fn probe(
     Gpu::new(&GpuOptions::default())?.probe(packed, mode, items)
 }
 
-/// The packed arrays on the device: bindings 0–6.
+/// The packed arrays on the device: bindings 0–6 and 11 (the BVH).
 struct SceneBuffers {
-    bufs: Vec<Buffer>,
+    bufs: Vec<(u32, Buffer)>,
 }
+
+/// The scene's bindings (`layout.glsl`); 7 to 10 are the kernels' own.
+const SCENE_BINDINGS: [u32; 8] = [0, 1, 2, 3, 4, 5, 6, 11];
 
 impl SceneBuffers {
     fn bindings(&self) -> Vec<(u32, &Buffer)> {
-        self.bufs
-            .iter()
-            .enumerate()
-            .map(|(i, b)| (i as u32, b))
-            .collect()
+        self.bufs.iter().map(|(i, b)| (*i, b)).collect()
     }
 }
 
@@ -589,7 +588,7 @@ impl Gpu {
             if bytes > i.max_storage_buffer_range {
                 let hint = match name {
                     "output samples" => "render a smaller image",
-                    "cell_start" | "refs" => "choose a coarser --grid",
+                    "cell_start" | "refs" => "choose a coarser --grid or --accel bvh",
                     _ => "simplify the scene",
                 };
                 return Err(GpuError::Limits(format!(
@@ -620,16 +619,18 @@ impl Gpu {
         staged: bool,
     ) -> Result<SceneBuffers, GpuError> {
         let b = |name: &str, bytes: &[u8]| Buffer::upload(&self.ctx, cmds, name, bytes, staged);
+        let bufs = vec![
+            b("globals", bytemuck::bytes_of(&p.globals))?,
+            b("prims", bytemuck::cast_slice(&p.prims))?,
+            b("extra", bytemuck::cast_slice(&p.extra))?,
+            b("materials", bytemuck::cast_slice(&p.materials))?,
+            b("lights", bytemuck::cast_slice(&p.lights))?,
+            b("cell_start", bytemuck::cast_slice(&p.cell_start))?,
+            b("refs", bytemuck::cast_slice(&p.refs))?,
+            b("bvh", bytemuck::cast_slice(&p.bvh))?,
+        ];
         Ok(SceneBuffers {
-            bufs: vec![
-                b("globals", bytemuck::bytes_of(&p.globals))?,
-                b("prims", bytemuck::cast_slice(&p.prims))?,
-                b("extra", bytemuck::cast_slice(&p.extra))?,
-                b("materials", bytemuck::cast_slice(&p.materials))?,
-                b("lights", bytemuck::cast_slice(&p.lights))?,
-                b("cell_start", bytemuck::cast_slice(&p.cell_start))?,
-                b("refs", bytemuck::cast_slice(&p.refs))?,
-            ],
+            bufs: SCENE_BINDINGS.into_iter().zip(bufs).collect(),
         })
     }
 
@@ -724,7 +725,7 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &[0, 1, 2, 3, 4, 5, 6, 7, 8],
+            &[0, 1, 2, 3, 4, 5, 6, 7, 8, 11],
             std::mem::size_of::<RenderPush>() as u32,
             &[
                 (0, opts.workgroup[0]),
@@ -859,7 +860,7 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &[0, 1, 2, 3, 4, 5, 6, 9, 10],
+            &[0, 1, 2, 3, 4, 5, 6, 9, 10, 11],
             std::mem::size_of::<ProbePush>() as u32,
             &[],
         )?;

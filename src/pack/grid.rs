@@ -95,6 +95,8 @@ pub enum Stage {
     Count,
     /// Filing every primitive into its cells.
     File,
+    /// Building the BVH (primitives placed in leaves so far).
+    Bvh,
 }
 
 /// `progress(stage, done, total)`: primitives done in the current pass.

@@ -40,7 +40,9 @@ pub struct Globals {
     pub trace: [u32; 4],
     /// x: min weight, y: surface offset (scene units), z, w: unused.
     pub params: [f32; 4],
-    /// x: counting flags (`FLAG_*`), y, z, w: unused.
+    /// x: counting flags (`FLAG_*`), y: the acceleration structure the
+    /// tracers walk (`ACCEL_GRID`, `ACCEL_BVH`), z: interior nodes of the
+    /// BVH (0: none; `bvh` holds two entries per node), w: unused.
     pub flags: [u32; 4],
 }
 
@@ -110,6 +112,36 @@ pub struct Light {
     pub falloff: [f32; 4],
 }
 
+/// One child of an interior BVH node, 32 bytes: entries 2k and 2k + 1 of
+/// the `bvh` array are the two children of interior node k (node 0 the
+/// root; nodes in depth-first order). `lo`/`hi`: the child's box (f32,
+/// rounded outwards from the primitives' padded bounds). `count` > 0: a
+/// leaf of `count` primitives from `prims[link]` on; `count` = 0: the
+/// interior node `link`. An empty box (lo = +∞, hi = −∞) is never
+/// entered: a root that is one leaf has such a second child.
+///
+/// `vec3` then `uint` is 16 bytes in std430 (a `vec3` is aligned to 16
+/// and 12 long), so no padding; aligned to 32 bytes so that a node's two
+/// children share one cache line.
+#[repr(C, align(32))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BvhChild {
+    pub lo: [f32; 3],
+    pub link: u32,
+    pub hi: [f32; 3],
+    pub count: u32,
+}
+
+impl BvhChild {
+    /// The child that no ray enters.
+    pub const EMPTY: BvhChild = BvhChild {
+        lo: [f32::INFINITY; 3],
+        link: 0,
+        hi: [f32::NEG_INFINITY; 3],
+        count: 0,
+    };
+}
+
 pub fn cell_pack(x: u32, y: u32, z: u32) -> u32 {
     x | (y << 10) | (z << 20)
 }
@@ -139,6 +171,11 @@ mod tests {
         assert_eq!(size_of::<Material>(), 96);
         assert_eq!(offset_of!(Material, absorb), 80);
         assert_eq!(size_of::<Light>(), 48);
+        assert_eq!(size_of::<BvhChild>(), 32);
+        assert_eq!(std::mem::align_of::<BvhChild>(), 32);
+        assert_eq!(offset_of!(BvhChild, link), 12);
+        assert_eq!(offset_of!(BvhChild, hi), 16);
+        assert_eq!(offset_of!(BvhChild, count), 28);
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! Scene → Packed: camera-relative f32 std430 arrays and the voxel grid.
 //! Both tracers read only what this produces.
 
+pub mod bvh;
 pub mod grid;
 pub mod layout;
 pub mod pages;
@@ -12,7 +13,7 @@ use crate::scene::{Scene, Shape};
 use glam::DVec3;
 use grid::Bounds;
 pub use grid::{Progress, Stage};
-use layout::{Globals, Light, Material, Prim};
+use layout::{BvhChild, Globals, Light, Material, Prim};
 pub use pages::Pages;
 use std::time::Instant;
 
@@ -27,6 +28,20 @@ pub enum Sampling {
     Corners,
 }
 
+/// The acceleration structure the tracers walk (`--accel`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Accel {
+    /// The uniform voxel grid, walked by 3D-DDA.
+    Grid,
+    /// A bounding-volume hierarchy built with the surface-area heuristic.
+    Bvh,
+    /// Chosen per scene by the rule in docs/method.md ("Choosing the
+    /// structure").
+    #[default]
+    Auto,
+}
+
 /// The render settings that shape the packed data.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
@@ -38,6 +53,9 @@ pub struct Settings {
     pub sampling: Sampling,
     /// `--grid`: this resolution or a refusal; `None`: the heuristic.
     pub grid: Option<[u32; 3]>,
+    /// `--accel`: the acceleration structure. An explicit `--grid`
+    /// with `Auto` means the grid.
+    pub accel: Accel,
     /// The memory the run may use (`--memory-limit`); packing refuses,
     /// before allocating, a run whose estimate is over it.
     pub budget: Budget,
@@ -53,6 +71,7 @@ impl Default for Settings {
             spp: 1,
             sampling: Sampling::Centers,
             grid: None,
+            accel: Accel::Auto,
             budget: Budget::system(),
         }
     }
@@ -87,6 +106,9 @@ pub enum PackError {
         count: u64,
         max: u64,
     },
+    /// `--grid` with `--accel bvh`.
+    #[error("--grid sets the voxel grid's resolution; it does not go with --accel bvh")]
+    GridWithBvh,
     /// An image side over `MAX_IMAGE_SIZE`.
     #[error("image {what} {value} is over the limit of {MAX_IMAGE_SIZE}")]
     ImageSize { what: &'static str, value: u32 },
@@ -142,6 +164,7 @@ impl Preset {
                 spp: 1,
                 sampling: Sampling::Corners,
                 grid: None,
+                accel: Accel::Auto,
                 budget: Budget::system(),
             },
         }
@@ -155,7 +178,27 @@ impl Preset {
     }
 }
 
-/// What the grid build cost.
+/// The acceleration structure in use and what it cost (`--stats`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AccelInfo {
+    /// `Grid` or `Bvh` (never `Auto`).
+    pub structure: Accel,
+    /// Chosen by `Accel::Auto`'s rule.
+    pub auto: bool,
+    /// Build time: ordering, copies, and the structure itself.
+    pub build_seconds: f64,
+    /// Bytes the structure keeps for the render.
+    pub bytes: usize,
+    /// BVH only (0 for the grid): interior nodes, leaves, the deepest
+    /// interior node's depth, the most primitives in a leaf.
+    pub nodes: usize,
+    pub leaves: usize,
+    pub depth: u32,
+    pub max_leaf: u32,
+}
+
+/// What the grid build cost (all zero but `duplicates` when the BVH is
+/// in use).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GridInfo {
     pub cells: [u32; 3],
@@ -177,7 +220,10 @@ pub struct Packed {
     pub lights: Vec<Light>,
     pub cell_start: Pages<u32>,
     pub refs: Pages<u32>,
+    /// Two entries per interior node (`BvhChild`); empty with the grid.
+    pub bvh: Pages<BvhChild>,
     pub grid: GridInfo,
+    pub accel: AccelInfo,
 }
 
 impl Packed {
@@ -194,6 +240,15 @@ impl Packed {
         match c {
             Counting::Traced => *f &= !FLAG_SPD_COUNTING,
             Counting::Spd => *f |= FLAG_SPD_COUNTING,
+        }
+    }
+
+    /// The structure the tracers walk (`Grid` or `Bvh`).
+    pub fn structure(&self) -> Accel {
+        if self.globals.flags[1] == ACCEL_BVH {
+            Accel::Bvh
+        } else {
+            Accel::Grid
         }
     }
 
@@ -658,6 +713,63 @@ pub fn census(scene: &Scene) -> (u64, u64, u64) {
     (prims, extra, bytes)
 }
 
+/// The structure to build for `settings` over the finite primitives'
+/// `bounds`, and whether `Accel::Auto` chose it. An explicit `--grid`
+/// under `Auto` means the grid.
+pub fn choose_structure(settings: &Settings, bounds: &[Bounds]) -> (Accel, bool) {
+    match settings.accel {
+        Accel::Auto if settings.grid.is_some() => (Accel::Grid, false),
+        Accel::Auto => (auto_structure(bounds), true),
+        a => (a, false),
+    }
+}
+
+/// `Accel::Auto` takes the grid above this many finite primitives: the
+/// BVH's build (about twice the grid's) then outweighs what it saves at
+/// usual image sizes (docs/method.md, "Choosing the structure").
+pub const AUTO_BVH_MAX_PRIMS: usize = 1 << 16;
+
+/// `Accel::Auto` takes the grid when the primitives' boxes fill at least
+/// this share of their union's box (`fill_ratio`): an evenly filled scene,
+/// which the grid's uniform cells suit (docs/method.md).
+pub const AUTO_GRID_FILL: f64 = 0.5;
+
+/// The sum of the primitives' box volumes over their union's box volume
+/// (overlaps counted each time). Each extent, of the union and of every
+/// box, is taken as at least 1/1000 of the union's largest, as the grid's
+/// heuristic does, so flat scenes and flat primitives still compare.
+pub fn fill_ratio(bounds: &[Bounds]) -> f64 {
+    let all = bounds.iter().fold(Bounds::EMPTY, |a, b| a.union(b));
+    let ext = |b: &Bounds| [0, 1, 2].map(|i| (b.hi[i] - b.lo[i]).max(0.0));
+    let e = ext(&all);
+    let floor = e.iter().cloned().fold(0.0, f64::max) / 1000.0;
+    if !(floor > 0.0) || !floor.is_finite() {
+        return 1.0; // every primitive at one point: nothing to separate
+    }
+    let vol = |e: [f64; 3]| e.iter().map(|x| x.max(floor) / floor).product::<f64>();
+    let whole = vol(e);
+    bounds.iter().map(|b| vol(ext(b))).sum::<f64>() / whole
+}
+
+/// `Accel::Auto`'s rule (docs/method.md, "Choosing the structure"): the
+/// BVH, except for large scenes and evenly filled ones, where the grid
+/// was measured faster.
+pub fn auto_structure(bounds: &[Bounds]) -> Accel {
+    if bounds.len() > AUTO_BVH_MAX_PRIMS {
+        return Accel::Grid;
+    }
+    let fill = fill_ratio(bounds);
+    log::debug!(
+        "auto structure: {} finite primitives, fill ratio {fill:.3}",
+        bounds.len()
+    );
+    if fill >= AUTO_GRID_FILL {
+        Accel::Grid
+    } else {
+        Accel::Bvh
+    }
+}
+
 /// Packs a scene for rendering with `settings`, or refuses it by estimate
 /// (before allocating) when it does not fit `settings.budget`.
 pub fn pack(scene: &Scene, settings: &Settings) -> Result<Packed, PackError> {
@@ -702,7 +814,11 @@ pub fn pack_with_progress(
         cells: 1,
         refs: 0,
         explicit_grid: settings.grid.is_some(),
+        bvh: false,
     };
+    if settings.accel == Accel::Bvh && settings.grid.is_some() {
+        return Err(PackError::GridWithBvh);
+    }
     // The image and the primitives, before any of them is allocated.
     settings.budget.check(&need)?;
 
@@ -783,33 +899,53 @@ pub fn pack_with_progress(
     need.bounded = n;
     need.extra = b.extra.len() as u64;
     let budget = &settings.budget;
-    let max_refs = |cells: u64| need.max_refs(budget, cells);
-    let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
-        Ok(g) => g,
-        Err(r) => {
-            let over = Need {
-                cells: r.cells,
-                refs: r.refs,
-                ..need
-            };
-            return Err(match budget.check(&over) {
-                Err(e) => e.into(),
-                Ok(()) => PackError::GridRefs {
-                    dims: r.dims,
-                    refs: r.refs,
-                    explicit: settings.grid.is_some(),
-                },
-            });
-        }
-    };
-    drop(bounds);
-    let grid_seconds = t0.elapsed().as_secs_f64();
+    let (structure, auto) = choose_structure(settings, &bounds);
+    need.bvh = structure == Accel::Bvh;
     let n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
-    for (i, (mut p, _)) in b.bounded.into_iter().enumerate() {
-        (p.cell_lo, p.cell_hi) = g.ranges[i];
-        prims.push(p);
-    }
+    let (g, tree) = if need.bvh {
+        budget.check(&need)?;
+        let tree = bvh::build(&bounds, progress);
+        drop(bounds);
+        // Leaf order: each leaf a contiguous run of primitives.
+        for &i in &tree.order {
+            prims.push(b.bounded[i as usize].0);
+        }
+        let empty = grid::Grid {
+            dims: [1, 1, 1],
+            cell_start: vec![0, 0],
+            ..grid::Grid::default()
+        };
+        (empty, tree)
+    } else {
+        let max_refs = |cells: u64| need.max_refs(budget, cells);
+        let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
+            Ok(g) => g,
+            Err(r) => {
+                let over = Need {
+                    cells: r.cells,
+                    refs: r.refs,
+                    ..need
+                };
+                return Err(match budget.check(&over) {
+                    Err(e) => e.into(),
+                    Ok(()) => PackError::GridRefs {
+                        dims: r.dims,
+                        refs: r.refs,
+                        explicit: settings.grid.is_some(),
+                    },
+                });
+            }
+        };
+        drop(bounds);
+        for (i, (mut p, _)) in b.bounded.iter().copied().enumerate() {
+            (p.cell_lo, p.cell_hi) = g.ranges[i];
+            prims.push(p);
+        }
+        (g, bvh::Bvh::default())
+    };
+    drop(b.bounded);
+    let build_seconds = t0.elapsed().as_secs_f64();
     prims.extend(b.unbounded);
 
     let forward = (cam.at - cam.from).normalize();
@@ -858,7 +994,11 @@ pub fn pack_with_progress(
             g.lo[0],
             g.lo[1],
             g.lo[2],
-            if n_bounded > 0 { 1.0 } else { 0.0 },
+            if n_bounded > 0 && structure == Accel::Grid {
+                1.0
+            } else {
+                0.0
+            },
         ],
         grid_max: [g.hi[0], g.hi[1], g.hi[2], 0.0],
         grid_cell: [g.cell[0], g.cell[1], g.cell[2], 0.0],
@@ -877,14 +1017,37 @@ pub fn pack_with_progress(
             0.0,
             0.0,
         ],
-        flags: [0; 4],
+        flags: [
+            0,
+            if need.bvh { ACCEL_BVH } else { ACCEL_GRID },
+            tree.node_count() as u32,
+            0,
+        ],
     };
-    let grid_info = GridInfo {
-        cells: g.dims,
-        duplicates,
-        refs: g.refs.len(),
-        bytes: (g.cell_start.len() + g.refs.len()) * 4,
-        seconds: grid_seconds,
+    let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4;
+    let grid_info = if need.bvh {
+        GridInfo {
+            duplicates,
+            ..GridInfo::default()
+        }
+    } else {
+        GridInfo {
+            cells: g.dims,
+            duplicates,
+            refs: g.refs.len(),
+            bytes: grid_bytes,
+            seconds: build_seconds,
+        }
+    };
+    let accel = AccelInfo {
+        structure,
+        auto,
+        build_seconds,
+        bytes: if need.bvh { tree.bytes() } else { grid_bytes },
+        nodes: tree.node_count(),
+        leaves: tree.leaves as usize,
+        depth: tree.depth,
+        max_leaf: tree.max_leaf,
     };
     Ok(Packed {
         globals,
@@ -894,7 +1057,9 @@ pub fn pack_with_progress(
         lights,
         cell_start: g.cell_start.into(),
         refs: g.refs.into(),
+        bvh: tree.nodes.into(),
         grid: grid_info,
+        accel,
     })
 }
 
@@ -1037,9 +1202,11 @@ mod tests {
         ]
     }
 
+    /// The grid (these tests are about it) under a 1 GiB budget.
     fn small() -> Settings {
         Settings {
             budget: Budget::bytes(1 << 30),
+            accel: Accel::Grid,
             ..Settings::default()
         }
     }
@@ -1204,6 +1371,7 @@ mod tests {
             width: Some(48),
             height: Some(32),
             budget,
+            accel: Accel::Grid,
             ..Settings::default()
         };
         let full = pack(&s, &settings(Budget::unlimited())).unwrap();
@@ -1253,7 +1421,136 @@ mod tests {
         assert_eq!(p.counting(), Counting::Spd);
         assert_eq!(p.globals.flags[0], FLAG_SPD_COUNTING);
         p.set_counting(Counting::Traced);
-        assert_eq!(p.globals.flags, [0; 4]);
+        assert_eq!(p.globals.flags[0], 0);
+    }
+
+    /// `auto` takes the BVH for clustered scenes (the SPD's, a
+    /// sphereflake), the grid for an evenly filled field of spheres and
+    /// above `AUTO_BVH_MAX_PRIMS` primitives.
+    #[test]
+    fn auto_picks_by_fill_and_size() {
+        let auto = |s: &Scene| pack(s, &Settings::default()).unwrap().structure();
+        assert_eq!(auto(&crate::gen::random_spheres(2000, 3)), Accel::Grid);
+        assert_eq!(auto(&crate::gen::sphereflake(2)), Accel::Bvh);
+        for spd in [
+            crate::gen::spd::SpdScene::Teapot,
+            crate::gen::spd::SpdScene::Tree,
+        ] {
+            let s = crate::gen::spd::generate(spd, None).unwrap();
+            assert_eq!(auto(&s), Accel::Bvh, "{spd:?}");
+        }
+        // Sparse (fill far below AUTO_GRID_FILL) but too many.
+        // Tiny boxes on a lattice of spacing 10.
+        let tiny = |i: usize| {
+            let p = [i % 64, (i / 64) % 64, i / 4096].map(|k| 10.0 * k as f64);
+            Bounds {
+                lo: p,
+                hi: p.map(|x| x + 1e-3),
+            }
+        };
+        let few: Vec<Bounds> = (0..1000).map(tiny).collect();
+        assert!(fill_ratio(&few) < AUTO_GRID_FILL);
+        assert_eq!(auto_structure(&few), Accel::Bvh);
+        let many: Vec<Bounds> = (0..AUTO_BVH_MAX_PRIMS + 1).map(tiny).collect();
+        assert_eq!(auto_structure(&many), Accel::Grid);
+        // Every primitive at one point: nothing for either to separate.
+        let pile = vec![
+            Bounds {
+                lo: [1.0; 3],
+                hi: [1.0; 3]
+            };
+            10
+        ];
+        assert_eq!(fill_ratio(&pile), 1.0);
+    }
+
+    /// `--accel` picks the structure the tracers walk; `--grid` under
+    /// `auto` means the grid, beside `--accel bvh` it is refused.
+    #[test]
+    fn the_structure_is_the_one_asked_for() {
+        let s = crate::gen::random_spheres(500, 2);
+        for (accel, grid, want) in [
+            (Accel::Grid, None, Accel::Grid),
+            (Accel::Bvh, None, Accel::Bvh),
+            (Accel::Auto, Some([4, 4, 4]), Accel::Grid),
+            (Accel::Grid, Some([4, 4, 4]), Accel::Grid),
+        ] {
+            let p = pack(
+                &s,
+                &Settings {
+                    accel,
+                    grid,
+                    ..Settings::default()
+                },
+            )
+            .unwrap();
+            assert_eq!((p.structure(), p.accel.structure), (want, want));
+            assert!(!p.accel.auto);
+            let bvh = want == Accel::Bvh;
+            assert_eq!(p.bvh.is_empty(), !bvh);
+            assert_eq!(p.globals.flags[2] as usize * 2, p.bvh.len());
+            assert_eq!(
+                p.globals.grid_min[3] == 1.0,
+                !bvh,
+                "the DDA runs only on the grid"
+            );
+            assert_eq!(p.grid.refs > 0, !bvh);
+            assert!(p.accel.bytes > 0 && p.accel.build_seconds >= 0.0);
+            if bvh {
+                assert!(p.accel.nodes > 0 && p.accel.leaves > p.accel.nodes / 2);
+                assert_eq!(p.accel.bytes, p.bvh.len() * 32);
+            }
+        }
+        let p = pack(&s, &Settings::default()).unwrap();
+        assert!(p.accel.auto);
+        let e = pack(
+            &s,
+            &Settings {
+                accel: Accel::Bvh,
+                grid: Some([4, 4, 4]),
+                ..Settings::default()
+            },
+        )
+        .unwrap_err();
+        assert_eq!(e, PackError::GridWithBvh);
+        assert!(e.to_string().contains("--accel bvh"), "{e}");
+    }
+
+    /// A budget the grid fits but the BVH's build does not: refused by
+    /// estimate, the BVH counted.
+    #[test]
+    fn the_bvh_is_budgeted() {
+        let s = crate::gen::random_spheres(20_000, 1);
+        let settings = |accel, budget| Settings {
+            width: Some(16),
+            height: Some(16),
+            accel,
+            budget,
+            ..Settings::default()
+        };
+        let (prims, extra, scene_bytes) = census(&s);
+        let base = Need {
+            width: 16,
+            height: 16,
+            scene_objects: s.objects.len() as u64,
+            scene_bytes,
+            prims,
+            bounded: prims,
+            extra,
+            cells: 1,
+            ..Need::default()
+        };
+        let with_bvh = Need { bvh: true, ..base };
+        // Between what the packing needs without the BVH and with it.
+        let limit = (base.peak() + with_bvh.peak()) / 2;
+        let Err(PackError::Budget(e)) = pack(&s, &settings(Accel::Bvh, Budget::bytes(limit)))
+        else {
+            panic!("not refused");
+        };
+        assert!(e.need.bvh);
+        assert!(e.total > limit && e.total <= with_bvh.peak());
+        assert!(pack(&s, &settings(Accel::Grid, Budget::bytes(limit))).is_ok());
+        assert!(pack(&s, &settings(Accel::Bvh, Budget::bytes(with_bvh.peak()))).is_ok());
     }
 
     #[test]

@@ -1,18 +1,20 @@
 //! 3D-DDA (Amanatides & Woo) through the uniform voxel grid: twin of
 //! `shaders/grid.glsl`.
 //!
-//! Closest hit keeps the best hit found so far across cells (a primitive's
-//! hit may lie beyond the cell that referenced it) and stops once that hit
-//! lies inside the current cell. Each primitive is tested once per ray: its
+//! One traversal serves both queries (`query.rs`). The closest hit keeps
+//! the best hit found so far across cells (a primitive's hit may lie
+//! beyond the cell that referenced it) and stops once that hit lies
+//! inside the current cell; a shadow feeler's length plays the part of
+//! that hit. Each primitive is tested once per ray: its
 //! references along a ray form one run of consecutive cells (it is filed
 //! in every cell its bounds overlap, and cell indices are monotone along a
 //! ray), so a primitive whose cell range holds the previous cell was
 //! already tested there and is skipped.
 
-use super::intersect::{intersect, Hit, RayPre};
-use super::math::{Ray, Real, V3};
+use super::intersect::RayPre;
+use super::math::{Ray, Real};
+use super::query::{query_prim, Query, Work};
 use super::SceneView;
-use crate::constants::SHADOW_CACHE_LIGHTS;
 use crate::pack::layout::Prim;
 
 /// Traversal state: the current cell and where the ray leaves it on each
@@ -245,40 +247,21 @@ fn cell_index(s: &SceneView, c: [i32; 3]) -> usize {
     (c[0] as u32 + d[0] * (c[1] as u32 + d[1] * c[2] as u32)) as usize
 }
 
-/// Per-thread scratch of the tracer: counters of intersection work (for
-/// tests and profiling) and the shadow cache.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Work {
-    pub tests: u64,
-    pub cells: u64,
-    /// Shadow cache (Haines & Greenberg's "last blocker"): per light, 1 + the
-    /// index of the opaque primitive that last blocked a feeler to it (0:
-    /// none). Tested first, it answers most shadowed feelers without a
-    /// traversal. It never changes a result: an opaque blocker makes the
-    /// transmittance exactly zero whatever else the feeler crosses.
-    pub shadow_cache: [u32; SHADOW_CACHE_LIGHTS as usize],
-}
-
-/// The nearest hit along the ray with t < tmax: (hit, primitive index).
-pub fn closest_hit<F: Real>(
+/// Walks the grid for query `q` (`query.rs`): every primitive listed in
+/// the cells the ray crosses, each once, until the query is done, the
+/// ray leaves the grid, or `q.t` (the best hit so far, or the feeler's
+/// length) lies inside the current cell. The unbounded primitives are
+/// the caller's (`accel.rs`).
+#[inline(always)]
+pub fn grid_traverse<F: Real>(
     s: &SceneView,
     ray: &Ray<F>,
     pre: &RayPre<F>,
-    tmax: F,
+    q: &mut Query<F>,
     work: &mut Work,
-) -> Option<(Hit<F>, u32)> {
-    let g = s.globals;
-    let mut best_t = tmax;
-    let mut best: Option<(Hit<F>, u32)> = None;
-    for i in g.counts[0]..g.counts[1] {
-        work.tests += 1;
-        if let Some(h) = intersect(&s.prims[i as usize], s.extra, ray, pre, best_t) {
-            best_t = h.t;
-            best = Some((h, i));
-        }
-    }
-    let Some(mut dda) = dda_setup(s, ray, pre, best_t) else {
-        return best;
+) {
+    let Some(mut dda) = dda_setup(s, ray, pre, q.t) else {
+        return;
     };
     for _ in 0..dda_max_cells(s) {
         work.cells += 1;
@@ -293,11 +276,11 @@ pub fn closest_hit<F: Real>(
         };
         if skip >= 2 {
             let (t_jump, axis) = dda_jump_exit(s, &dda, skip - 1);
-            if best_t <= t_jump
+            if q.t <= t_jump
                 || t_jump >= dda.t_end
                 || !dda_jump(s, &mut dda, skip - 1, t_jump, axis)
             {
-                return best;
+                return;
             }
             continue;
         }
@@ -307,120 +290,12 @@ pub fn closest_hit<F: Real>(
             if seen_before(prim, &dda) {
                 continue;
             }
-            work.tests += 1;
-            if let Some(h) = intersect(prim, s.extra, ray, pre, best_t) {
-                best_t = h.t;
-                best = Some((h, r));
+            if query_prim(s, q, prim, r, ray, pre, work) {
+                return;
             }
         }
-        if best_t <= t_exit || t_exit >= dda.t_end {
-            return best;
-        }
-        if !dda_advance(s, &mut dda, axis) {
-            return best;
+        if q.t <= t_exit || t_exit >= dda.t_end || !dda_advance(s, &mut dda, axis) {
+            return;
         }
     }
-    best
-}
-
-/// Light reaching the end of a shadow feeler of length `dist`: every
-/// primitive crossing it multiplies by its k_t (opaque ones give zero).
-/// Shadow feelers are not refracted.
-pub fn transmittance<F: Real>(
-    s: &SceneView,
-    ray: &Ray<F>,
-    pre: &RayPre<F>,
-    dist: F,
-    light: usize,
-    work: &mut Work,
-) -> V3<F> {
-    let g = s.globals;
-    let cached = if light < SHADOW_CACHE_LIGHTS as usize {
-        work.shadow_cache[light]
-    } else {
-        0
-    };
-    if cached != 0 {
-        work.tests += 1;
-        if intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist).is_some() {
-            return V3::zero();
-        }
-    }
-    let mut trans = V3::splat(F::one());
-    for i in g.counts[0]..g.counts[1] {
-        let prim = &s.prims[i as usize];
-        work.tests += 1;
-        if intersect(prim, s.extra, ray, pre, dist).is_some() {
-            let kt = V3::of(&s.materials[prim.material() as usize].kt);
-            trans = trans.mul_elem(kt);
-            if kt.max_elem() <= F::zero() && light < SHADOW_CACHE_LIGHTS as usize {
-                work.shadow_cache[light] = i + 1;
-            }
-            if trans.max_elem() <= F::zero() {
-                return V3::zero();
-            }
-        }
-    }
-    let Some(mut dda) = dda_setup(s, ray, pre, dist) else {
-        return trans;
-    };
-    for _ in 0..dda_max_cells(s) {
-        work.cells += 1;
-        let ci = cell_index(s, dda.cell);
-        let (start, end) = (s.cell_start[ci] as usize, s.cell_start[ci + 1] as usize);
-        // Only an empty cell's distance is read: one memory access less
-        // per listed cell.
-        let skip = if start == end {
-            cell_skip(s, ci) as i32
-        } else {
-            0
-        };
-        if skip >= 2 {
-            let (t_jump, axis) = dda_jump_exit(s, &dda, skip - 1);
-            if t_jump >= dda.t_end || !dda_jump(s, &mut dda, skip - 1, t_jump, axis) {
-                return trans;
-            }
-            continue;
-        }
-        let (t_exit, axis) = dda_exit(&dda);
-        for &r in &s.refs[start..end] {
-            let prim = &s.prims[r as usize];
-            if seen_before(prim, &dda) {
-                continue;
-            }
-            work.tests += 1;
-            if intersect(prim, s.extra, ray, pre, dist).is_some() {
-                let kt = V3::of(&s.materials[prim.material() as usize].kt);
-                trans = trans.mul_elem(kt);
-                if kt.max_elem() <= F::zero() && light < SHADOW_CACHE_LIGHTS as usize {
-                    work.shadow_cache[light] = r + 1;
-                }
-                if trans.max_elem() <= F::zero() {
-                    return V3::zero();
-                }
-            }
-        }
-        if t_exit >= dda.t_end || !dda_advance(s, &mut dda, axis) {
-            return trans;
-        }
-    }
-    trans
-}
-
-/// Brute force over every primitive: the reference the grid must equal.
-pub fn closest_hit_brute<F: Real>(
-    s: &SceneView,
-    ray: &Ray<F>,
-    pre: &RayPre<F>,
-    tmax: F,
-) -> Option<(Hit<F>, u32)> {
-    let mut best_t = tmax;
-    let mut best = None;
-    for (i, prim) in s.prims.iter().enumerate() {
-        if let Some(h) = intersect(prim, s.extra, ray, pre, best_t) {
-            best_t = h.t;
-            best = Some((h, i as u32));
-        }
-    }
-    best
 }

@@ -1,14 +1,17 @@
 //! The tracer, generic over its float type. Each file is the twin of a
 //! shader file (see ARCHITECTURE.md): same names, same order of arithmetic.
 
+pub mod accel;
+pub mod bvh;
 pub mod grid;
 pub mod intersect;
 pub mod math;
+pub mod query;
 pub mod sample;
 pub mod shade;
 pub mod tree;
 
-use crate::pack::layout::{Globals, Light, Material, Prim};
+use crate::pack::layout::{BvhChild, Globals, Light, Material, Prim};
 use crate::pack::Packed;
 
 /// Borrowed view of the packed arrays: what the shader's buffers hold.
@@ -21,6 +24,7 @@ pub struct SceneView<'a> {
     pub lights: &'a [Light],
     pub cell_start: &'a [u32],
     pub refs: &'a [u32],
+    pub bvh: &'a [BvhChild],
 }
 
 impl<'a> SceneView<'a> {
@@ -33,6 +37,7 @@ impl<'a> SceneView<'a> {
             lights: &p.lights,
             cell_start: &p.cell_start,
             refs: &p.refs,
+            bvh: &p.bvh,
         }
     }
 

@@ -2,9 +2,10 @@
 //! I_L = k_a I_a + Σ_i I_i f(d) S_i [k_d (N·L) + k_sr (V·R_L)^n_r + k_st (V·T_L)^n_t]
 //! with one shadow feeler per light (S_i: product of the k_t of what it crosses).
 
-use super::grid::{transmittance, Work};
+use super::accel::transmittance;
 use super::intersect::RayPre;
 use super::math::{Ray, Real, V3};
+use super::query::Work;
 use super::{RayStats, SceneView};
 use crate::constants::*;
 use crate::pack::layout::Material;

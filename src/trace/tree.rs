@@ -13,9 +13,10 @@
 //! reference tracer did; its weight is 0, so it and its subtree are traced
 //! for the ray counts only and add nothing to the image.
 
-use super::grid::{closest_hit, Work};
+use super::accel::closest_hit;
 use super::intersect::{normals, RayPre};
 use super::math::{Ray, Real, V3};
+use super::query::Work;
 use super::shade::{reflect_dir, refract_dir, shade};
 use super::{RayStats, SceneView};
 use crate::constants::*;

@@ -1,0 +1,56 @@
+// The tracer's two queries over the whole scene: twin of
+// src/trace/accel.rs. Each tests the unbounded primitives (planes,
+// unclipped quadrics, giants) and then walks the structure the packed
+// scene carries (g.flags.y): the grid (grid.glsl) or the BVH (bvh.glsl),
+// one traversal each serving both queries (query.glsl).
+#ifndef WHITTED_ACCEL_GLSL
+#define WHITTED_ACCEL_GLSL
+
+#include "grid.glsl"
+#include "bvh.glsl"
+
+// Runs query q: the unbounded primitives, then the structure in use.
+void accel_traverse(Ray ray, RayPre pre, inout Query q) {
+    for (uint i = g.counts.x; i < g.counts.y; i++) {
+        if (query_prim(q, prims[i], i, ray, pre)) {
+            break;
+        }
+    }
+    if (q.done) {
+        return;
+    }
+    if (g.flags.y == ACCEL_BVH) {
+        bvh_traverse(ray, pre, q);
+    } else {
+        grid_traverse(ray, pre, q);
+    }
+}
+
+// The nearest hit along the ray with t < tmax: the hit and the primitive
+// index.
+bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_prim) {
+    Query q = query_closest(tmax);
+    accel_traverse(ray, pre, q);
+    best = q.hit;
+    best_prim = q.prim;
+    return q.found;
+}
+
+// Light reaching the end of a shadow feeler of length dist: every primitive
+// crossing it multiplies by its k_t (opaque ones give zero). Shadow feelers
+// are not refracted. `light` indexes the shadow cache (>= SHADOW_CACHE_LIGHTS:
+// none), whose primitive is tested first.
+vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
+    uint cached = light < SHADOW_CACHE_LIGHTS ? shadow_cache[light] : 0u;
+    if (cached != 0u) {
+        Hit hc;
+        if (intersect(prims[cached - 1u], ray, pre, dist, hc)) {
+            return vec3(0.0);
+        }
+    }
+    Query q = query_shadow(dist, light);
+    accel_traverse(ray, pre, q);
+    return q.done ? vec3(0.0) : q.trans;
+}
+
+#endif

@@ -1,0 +1,92 @@
+// The two questions a traversal answers, and what it does with each
+// primitive it reaches: twin of src/trace/query.rs.
+//
+// Every acceleration structure has one traversal (grid_traverse,
+// bvh_traverse) that serves both queries: it hands each primitive to
+// query_prim and bounds its walk by Query.t. For the closest hit t is the
+// best hit so far and shrinks with every hit; for a shadow feeler (any
+// hit, with the transmittance of every transparent blocker) it is the
+// feeler's length and stays, and the walk stops once an opaque blocker has
+// made the light zero (Query.done). (The Rust Work counters are not kept
+// here; its shadow cache is.)
+#ifndef WHITTED_QUERY_GLSL
+#define WHITTED_QUERY_GLSL
+
+#include "intersect.glsl"
+
+// Shadow cache (Rust: Work::shadow_cache): per light, 1 + the index of the
+// opaque primitive that last blocked a feeler to it (0: none). It never
+// changes a result; reset per invocation (shadow_cache_reset).
+uint shadow_cache[SHADOW_CACHE_LIGHTS];
+
+// lavapipe (llvmpipe 22.3) gives each SIMD group of invocations a budget
+// of 65535 loop iterations for the whole shader, then silently runs every
+// loop once (LP_MAX_TGSI_LOOP_ITERATIONS). Each traversal loop that ends
+// without reaching its own end counts here; render.comp adds them up and
+// the host refuses an image in which any loop was cut. (GPU only: the CPU
+// has no such budget.)
+uint loops_cut = 0u;
+
+void shadow_cache_reset() {
+    for (uint i = 0u; i < SHADOW_CACHE_LIGHTS; i++) {
+        shadow_cache[i] = 0u;
+    }
+}
+
+// One query in progress.
+struct Query {
+    // Hits count only below this distance: the best hit so far (closest
+    // hit), or the feeler's length (shadow).
+    float t;
+    // Any hit (a shadow feeler) rather than the closest.
+    bool shadow;
+    // Shadow: the light's slot in the shadow cache (>= SHADOW_CACHE_LIGHTS:
+    // none).
+    uint light;
+    // Closest hit: the best hit and its primitive (found: any).
+    bool found;
+    Hit hit;
+    uint prim;
+    // Shadow: the product of the k_t of the blockers found so far.
+    vec3 trans;
+    // Shadow: an opaque blocker was found (the walk may stop).
+    bool done;
+};
+
+// The nearest hit below tmax.
+Query query_closest(float tmax) {
+    return Query(tmax, false, SHADOW_CACHE_LIGHTS, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu,
+                 vec3(1.0), false);
+}
+
+// The light left at the end of a feeler of length dist towards light.
+Query query_shadow(float dist, uint light) {
+    return Query(dist, true, light, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu, vec3(1.0), false);
+}
+
+// Tests prim (primitive i) for query q; true when the query is done (an
+// opaque blocker for a feeler: nothing further can change the answer).
+bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
+    Hit h;
+    if (intersect(prim, ray, pre, q.t, h)) {
+        if (q.shadow) {
+            vec3 kt = materials[prim_material(prim)].kt.xyz;
+            precise vec3 trans = q.trans * kt;
+            q.trans = trans;
+            if (max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
+                shadow_cache[q.light] = i + 1u;
+            }
+            if (max_elem(q.trans) <= 0.0) {
+                q.done = true;
+            }
+        } else {
+            q.t = h.t;
+            q.found = true;
+            q.hit = h;
+            q.prim = i;
+        }
+    }
+    return q.done;
+}
+
+#endif

@@ -1,0 +1,691 @@
+//! Building the bounding-volume hierarchy over the finite primitives
+//! (docs/method.md, "Bounding-volume hierarchy").
+//!
+//! Binned surface-area heuristic (Wald 2007): at each node the centroids
+//! are sorted into `BINS` equal bins on each axis, and the split between
+//! two bins that minimises `TRAVERSAL_COST` + (A_L·N_L + A_R·N_R)/A is
+//! taken, or a leaf is made when that is no cheaper than testing the
+//! node's `N` primitives (at most `MAX_LEAF` of them). Subtrees of at
+//! least `PARALLEL_MIN` primitives are built in parallel (rayon).
+//!
+//! Every primitive is in exactly one leaf and a leaf is a contiguous run
+//! of primitives: `Bvh::order` is the order the packed primitives take.
+//! Nodes are flattened depth-first, two `BvhChild` entries per interior
+//! node (`pack::layout::BvhChild`); the traversal reads both children's
+//! boxes from one cache line.
+//!
+//! Boxes are f32, rounded outwards from the primitives' f64 bounds padded
+//! by `PAD_REL` of their diagonal and `PAD_ULPS` f32 steps of the scene's
+//! largest coordinate: a ray whose f32 intersection routine hits a
+//! primitive enters every box around it, rounding and all.
+//!
+//! Depth: the traversal's stack has `BVH_STACK_SIZE` entries and pushes
+//! at most one per interior node on its path, so interior nodes stay at
+//! depth < `BVH_STACK_SIZE`: a node at depth d with N primitives is split
+//! by the heuristic only while d + ⌈log₂ N⌉ < `BVH_STACK_SIZE` − 1, and
+//! at the median otherwise (which halves N at each level).
+
+use super::grid::{Bounds, Progress, Stage};
+use super::layout::BvhChild;
+use crate::constants::BVH_STACK_SIZE;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Bins per axis of the binned heuristic.
+pub const BINS: usize = 16;
+/// Most primitives in a leaf (more are split, at the median if need be).
+pub const MAX_LEAF: usize = 8;
+/// Cost of visiting an interior node (two box tests) relative to one
+/// primitive intersection test.
+pub const TRAVERSAL_COST: f64 = 1.0;
+/// Subtrees of at least this many primitives are built in parallel.
+pub const PARALLEL_MIN: usize = 4096;
+/// Padding of each primitive's bounds: this share of its diagonal ...
+pub const PAD_REL: f64 = 1e-5;
+/// ... plus this many f32 steps of the scene's largest coordinate.
+pub const PAD_ULPS: f64 = 8.0;
+
+/// Bytes per finite primitive while the BVH is built: the build items
+/// (28), the leaf order (4), and the node entries (at most 2 per
+/// primitive: a leaf holds at least one) with a copy of a subtree's
+/// entries where parallel subtrees join (2 × 64).
+pub const BUILD_BYTES_PER_PRIM: u64 = 28 + 4 + 2 * 64;
+/// Bytes per finite primitive the BVH keeps for the render, at most (two
+/// 32-byte entries per interior node, fewer than one node per primitive).
+pub const BYTES_PER_PRIM: u64 = 64;
+
+/// The hierarchy: node entries, the primitives' leaf order, and its shape.
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    /// Two entries per interior node, depth-first (node 0 the root).
+    pub nodes: Vec<BvhChild>,
+    /// Position i of the packed (finite) primitives holds primitive
+    /// `order[i]` of the input.
+    pub order: Vec<u32>,
+    /// Depth of the deepest interior node (the root: 0).
+    pub depth: u32,
+    pub leaves: u32,
+    /// Most primitives in one leaf.
+    pub max_leaf: u32,
+}
+
+impl Bvh {
+    /// Interior nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len() / 2
+    }
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice())
+    }
+}
+
+/// A primitive's padded f32 box and its index in the input.
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    idx: u32,
+}
+
+impl Item {
+    /// Twice the centroid on `axis` (the factor 2 changes no split).
+    #[inline]
+    fn c2(&self, axis: usize) -> f32 {
+        self.lo[axis] + self.hi[axis]
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb {
+        lo: [f32::INFINITY; 3],
+        hi: [f32::NEG_INFINITY; 3],
+    };
+    #[inline]
+    fn grow(&mut self, lo: &[f32; 3], hi: &[f32; 3]) {
+        for i in 0..3 {
+            self.lo[i] = self.lo[i].min(lo[i]);
+            self.hi[i] = self.hi[i].max(hi[i]);
+        }
+    }
+    #[inline]
+    fn grow_point(&mut self, p: [f32; 3]) {
+        self.grow(&p, &p);
+    }
+    /// Half the surface area, in f64 (f32 overflows past 1.8e19).
+    fn half_area(&self) -> f64 {
+        if self.lo[0] > self.hi[0] {
+            return 0.0;
+        }
+        let e = [0, 1, 2].map(|i| self.hi[i] as f64 - self.lo[i] as f64);
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    }
+}
+
+/// `x` as the largest f32 not above it.
+fn round_down(x: f64) -> f32 {
+    let y = x as f32;
+    if y as f64 > x {
+        y.next_down()
+    } else {
+        y
+    }
+}
+
+/// `x` as the smallest f32 not below it.
+fn round_up(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) < x {
+        y.next_up()
+    } else {
+        y
+    }
+}
+
+/// Each primitive's box: its bounds padded (module docs), rounded out to f32.
+fn items(bounds: &[Bounds]) -> Vec<Item> {
+    let mag = bounds
+        .iter()
+        .flat_map(|b| b.lo.iter().chain(b.hi.iter()))
+        .filter(|x| x.is_finite())
+        .fold(0f64, |m, x| m.max(x.abs()));
+    let abs_pad = PAD_ULPS * f32::EPSILON as f64 * mag;
+    bounds
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let d = b.diagonal();
+            let pad = abs_pad + if d.is_finite() { PAD_REL * d } else { 0.0 };
+            Item {
+                lo: b.lo.map(|x| round_down(x - pad)),
+                hi: b.hi.map(|x| round_up(x + pad)),
+                idx: i as u32,
+            }
+        })
+        .collect()
+}
+
+/// Builds the hierarchy over `bounds` (camera-relative, f64), reporting
+/// progress as primitives reach their leaves. Empty input: no nodes.
+pub fn build(bounds: &[Bounds], progress: Progress) -> Bvh {
+    let n = bounds.len();
+    if n == 0 {
+        return Bvh::default();
+    }
+    progress(Stage::Bvh, 0, n as u64);
+    let mut items = items(bounds);
+    let ctx = Ctx {
+        done: AtomicU64::new(0),
+        total: n as u64,
+        progress,
+    };
+    let mut nodes = Vec::new();
+    let mut shape = Shape::default();
+    let nb = node_bounds(&items);
+    let root = build_rec(&ctx, &mut items, nb, 0, 0, &mut nodes, &mut shape);
+    if root.count > 0 {
+        // The whole scene is one leaf: a root whose second child is empty.
+        nodes = vec![root, BvhChild::EMPTY];
+    }
+    progress(Stage::Bvh, n as u64, n as u64);
+    Bvh {
+        nodes,
+        order: items.iter().map(|it| it.idx).collect(),
+        depth: shape.depth,
+        leaves: shape.leaves,
+        max_leaf: shape.max_leaf,
+    }
+}
+
+struct Ctx<'a> {
+    done: AtomicU64,
+    total: u64,
+    progress: Progress<'a>,
+}
+
+/// What a subtree looks like (for `Bvh`'s fields).
+#[derive(Clone, Copy, Debug, Default)]
+struct Shape {
+    depth: u32,
+    leaves: u32,
+    max_leaf: u32,
+}
+
+impl Shape {
+    fn join(&mut self, o: &Shape) {
+        self.depth = self.depth.max(o.depth);
+        self.leaves += o.leaves;
+        self.max_leaf = self.max_leaf.max(o.max_leaf);
+    }
+}
+
+/// ⌈log₂ n⌉ for n ≥ 1.
+fn ceil_log2(n: usize) -> u32 {
+    usize::BITS - (n.max(1) - 1).leading_zeros()
+}
+
+/// Builds the subtree of `items` (at positions `first..` of the final
+/// order), an interior node of it at `depth`; appends its interior nodes
+/// to `out` (links relative to `out`'s start) and returns the child entry
+/// that points at it (a leaf, or the interior node).
+fn build_rec(
+    ctx: &Ctx,
+    items: &mut [Item],
+    NodeBounds { bb, cb }: NodeBounds,
+    first: u32,
+    depth: u32,
+    out: &mut Vec<BvhChild>,
+    shape: &mut Shape,
+) -> BvhChild {
+    let n = items.len();
+    let leaf = |shape: &mut Shape| {
+        shape.leaves += 1;
+        shape.max_leaf = shape.max_leaf.max(n as u32);
+        let done = ctx.done.fetch_add(n as u64, Ordering::Relaxed) + n as u64;
+        if done >> 16 != (done - n as u64) >> 16 {
+            (ctx.progress)(Stage::Bvh, done, ctx.total);
+        }
+        BvhChild {
+            lo: bb.lo,
+            hi: bb.hi,
+            link: first,
+            count: n as u32,
+        }
+    };
+    if n == 1 {
+        return leaf(shape);
+    }
+    // The heuristic while the depth allows it (module docs), else the median.
+    let free = depth + ceil_log2(n) < BVH_STACK_SIZE - 1;
+    let split = match if free {
+        sah_split(items, &bb, &cb)
+    } else {
+        None
+    } {
+        Some((cost, axis, bin)) => {
+            let leaf_cost = n as f64;
+            if n <= MAX_LEAF && leaf_cost <= cost {
+                return leaf(shape);
+            }
+            let k = bin_scale(&cb, axis);
+            let lo = cb.lo[axis];
+            partition(items, |it| bin_of(it.c2(axis), lo, k) <= bin)
+        }
+        None => {
+            if n <= MAX_LEAF {
+                return leaf(shape);
+            }
+            median_split(items, &cb)
+        }
+    };
+    // A split always leaves both sides non-empty (the heuristic only
+    // weighs such splits); guard against a bin disagreeing anyway.
+    let (mid, lb, rb) = if split.0 == 0 || split.0 == n {
+        median_split(items, &cb)
+    } else {
+        split
+    };
+    shape.depth = shape.depth.max(depth);
+    let (left, right) = items.split_at_mut(mid);
+    let node = out.len() / 2;
+    out.push(BvhChild::EMPTY);
+    out.push(BvhChild::EMPTY);
+    let (l, r) = if n >= PARALLEL_MIN {
+        let ((mut lv, l, ls), (mut rv, r, rs)) = rayon::join(
+            || {
+                let mut v = Vec::new();
+                let mut s = Shape::default();
+                let c = build_rec(ctx, left, lb, first, depth + 1, &mut v, &mut s);
+                (v, c, s)
+            },
+            || {
+                let mut v = Vec::new();
+                let mut s = Shape::default();
+                let c = build_rec(
+                    ctx,
+                    right,
+                    rb,
+                    first + mid as u32,
+                    depth + 1,
+                    &mut v,
+                    &mut s,
+                );
+                (v, c, s)
+            },
+        );
+        shape.join(&ls);
+        shape.join(&rs);
+        let l = append(out, &mut lv, l);
+        let r = append(out, &mut rv, r);
+        (l, r)
+    } else {
+        let l = build_rec(ctx, left, lb, first, depth + 1, out, shape);
+        let r = build_rec(ctx, right, rb, first + mid as u32, depth + 1, out, shape);
+        (l, r)
+    };
+    out[2 * node] = l;
+    out[2 * node + 1] = r;
+    BvhChild {
+        lo: bb.lo,
+        hi: bb.hi,
+        link: node as u32,
+        count: 0,
+    }
+}
+
+/// Appends a subtree built on its own (links relative to its start) to
+/// `out`, and returns its entry with the link moved likewise.
+fn append(out: &mut Vec<BvhChild>, sub: &mut Vec<BvhChild>, mut entry: BvhChild) -> BvhChild {
+    let base = (out.len() / 2) as u32;
+    for c in sub.iter_mut() {
+        if c.count == 0 {
+            c.link += base;
+        }
+    }
+    if entry.count == 0 {
+        entry.link += base;
+    }
+    out.append(sub);
+    entry
+}
+
+/// Bins per unit of (twice) the centroid on `axis`.
+#[inline]
+fn bin_scale(cb: &Aabb, axis: usize) -> f32 {
+    BINS as f32 / (cb.hi[axis] - cb.lo[axis])
+}
+
+#[inline]
+fn bin_of(c2: f32, lo: f32, k: f32) -> usize {
+    // Non-negative, or NaN (0) for a centroid beyond f32: `as` saturates.
+    (((c2 - lo) * k) as usize).min(BINS - 1)
+}
+
+/// The best split by the binned heuristic: (cost relative to testing one
+/// primitive, axis, last bin of the left side). `None` when every
+/// centroid is at one point (nothing to split by).
+fn sah_split(items: &[Item], bb: &Aabb, cb: &Aabb) -> Option<(f64, usize, usize)> {
+    let ok = |a: usize| cb.hi[a] - cb.lo[a] > 0.0 && bin_scale(cb, a).is_finite();
+    let axes = [ok(0), ok(1), ok(2)];
+    if axes == [false; 3] {
+        return None;
+    }
+    let scale = [0, 1, 2].map(|a| bin_scale(cb, a));
+    let bin = |chunk: &[Item]| {
+        let mut bins = Bins::default();
+        for it in chunk {
+            for a in 0..3 {
+                if axes[a] {
+                    let b = bin_of(it.c2(a), cb.lo[a], scale[a]);
+                    bins.boxes[a][b].grow(&it.lo, &it.hi);
+                    bins.counts[a][b] += 1;
+                }
+            }
+        }
+        bins
+    };
+    let Bins { boxes, counts } = if items.len() >= PARALLEL_MIN * 16 {
+        use rayon::prelude::*;
+        items
+            .par_chunks(PARALLEL_MIN * 4)
+            .map(bin)
+            .reduce(Bins::default, Bins::merge)
+    } else {
+        bin(items)
+    };
+    let parent = bb.half_area();
+    let mut best: Option<(f64, usize, usize)> = None;
+    for a in (0..3).filter(|&a| axes[a]) {
+        // Right-hand sweep: area × count of bins b+1.. for each b.
+        let mut right = [0f64; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut n = 0u64;
+        for b in (1..BINS).rev() {
+            acc.grow(&boxes[a][b].lo, &boxes[a][b].hi);
+            n += counts[a][b] as u64;
+            right[b - 1] = if n > 0 {
+                acc.half_area() * n as f64
+            } else {
+                -1.0
+            };
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut n = 0u64;
+        for b in 0..BINS - 1 {
+            acc.grow(&boxes[a][b].lo, &boxes[a][b].hi);
+            n += counts[a][b] as u64;
+            if n == 0 || right[b] < 0.0 {
+                continue;
+            }
+            let sah = acc.half_area() * n as f64 + right[b];
+            let cost = if parent > 0.0 {
+                TRAVERSAL_COST + sah / parent
+            } else {
+                // A box of no area (all primitives flat in one plane
+                // and line): weigh by counts alone.
+                TRAVERSAL_COST + items.len() as f64
+            };
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, a, b));
+            }
+        }
+    }
+    best
+}
+
+/// The heuristic's bins on each axis: the union of their items' boxes and
+/// their counts.
+#[derive(Clone, Copy)]
+struct Bins {
+    boxes: [[Aabb; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Default for Bins {
+    fn default() -> Self {
+        Bins {
+            boxes: [[Aabb::EMPTY; BINS]; 3],
+            counts: [[0; BINS]; 3],
+        }
+    }
+}
+
+impl Bins {
+    fn merge(mut self, o: Bins) -> Bins {
+        for a in 0..3 {
+            for b in 0..BINS {
+                self.boxes[a][b].grow(&o.boxes[a][b].lo, &o.boxes[a][b].hi);
+                self.counts[a][b] += o.counts[a][b];
+            }
+        }
+        self
+    }
+}
+
+/// A node's box and its items' centroid box (twice the centroids).
+#[derive(Clone, Copy, Debug)]
+struct NodeBounds {
+    bb: Aabb,
+    cb: Aabb,
+}
+
+impl NodeBounds {
+    const EMPTY: NodeBounds = NodeBounds {
+        bb: Aabb::EMPTY,
+        cb: Aabb::EMPTY,
+    };
+    #[inline]
+    fn grow(&mut self, it: &Item) {
+        self.bb.grow(&it.lo, &it.hi);
+        self.cb.grow_point([it.c2(0), it.c2(1), it.c2(2)]);
+    }
+    fn merge(mut self, o: NodeBounds) -> NodeBounds {
+        self.bb.grow(&o.bb.lo, &o.bb.hi);
+        self.cb.grow(&o.cb.lo, &o.cb.hi);
+        self
+    }
+}
+
+/// The bounds of `items` (in parallel when there are many).
+fn node_bounds(items: &[Item]) -> NodeBounds {
+    let fold = |chunk: &[Item]| {
+        let mut nb = NodeBounds::EMPTY;
+        for it in chunk {
+            nb.grow(it);
+        }
+        nb
+    };
+    if items.len() >= PARALLEL_MIN * 16 {
+        use rayon::prelude::*;
+        items
+            .par_chunks(PARALLEL_MIN * 4)
+            .map(fold)
+            .reduce(|| NodeBounds::EMPTY, NodeBounds::merge)
+    } else {
+        fold(items)
+    }
+}
+
+/// Splits at the median centroid of the widest centroid axis (by index
+/// when every centroid is at one point); returns the left side's length
+/// and both sides' bounds.
+fn median_split(items: &mut [Item], cb: &Aabb) -> (usize, NodeBounds, NodeBounds) {
+    let mid = items.len() / 2;
+    let axis = (0..3)
+        .max_by(|&a, &b| (cb.hi[a] - cb.lo[a]).total_cmp(&(cb.hi[b] - cb.lo[b])))
+        .unwrap_or(0);
+    if cb.hi[axis] > cb.lo[axis] {
+        items.select_nth_unstable_by(mid, |x, y| x.c2(axis).total_cmp(&y.c2(axis)));
+    }
+    (mid, node_bounds(&items[..mid]), node_bounds(&items[mid..]))
+}
+
+/// Moves the items for which `left` holds to the front, keeping nothing
+/// else in order; returns how many there are and both sides' bounds
+/// (gathered on the way: no further pass over the items).
+fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> (usize, NodeBounds, NodeBounds) {
+    let mut lb = NodeBounds::EMPTY;
+    let mut rb = NodeBounds::EMPTY;
+    let mut i = 0;
+    let mut j = items.len();
+    while i < j {
+        if left(&items[i]) {
+            lb.grow(&items[i]);
+            i += 1;
+        } else {
+            j -= 1;
+            items.swap(i, j);
+            rb.grow(&items[j]);
+        }
+    }
+    (i, lb, rb)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bounds_of(points: &[([f64; 3], f64)]) -> Vec<Bounds> {
+        points
+            .iter()
+            .map(|&(c, r)| Bounds {
+                lo: c.map(|x| x - r),
+                hi: c.map(|x| x + r),
+            })
+            .collect()
+    }
+
+    fn rng(seed: u64) -> impl FnMut() -> f64 {
+        let mut h = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        move || {
+            h ^= h << 13;
+            h ^= h >> 7;
+            h ^= h << 17;
+            (h >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// Walks the flattened tree checking its invariants: every primitive
+    /// in exactly one leaf, every child box inside its parent's and
+    /// around its primitives' (padded) bounds, nodes depth-first.
+    fn check(bvh: &Bvh, bounds: &[Bounds]) {
+        let n = bounds.len();
+        let mut seen = vec![false; n];
+        assert_eq!(bvh.order.len(), n);
+        for &o in &bvh.order {
+            assert!(!seen[o as usize], "primitive {o} twice in the order");
+            seen[o as usize] = true;
+        }
+        let mut covered = vec![0u32; n];
+        let mut leaves = 0;
+        let mut depth = 0;
+        // (node, depth, parent box)
+        let mut stack = vec![(0usize, 0u32, Aabb::EMPTY)];
+        let mut visited = 0;
+        while let Some((k, d, parent)) = stack.pop() {
+            visited += 1;
+            assert_eq!(k, visited - 1, "nodes are numbered depth-first");
+            depth = depth.max(d);
+            assert!(d < BVH_STACK_SIZE);
+            for c in [&bvh.nodes[2 * k + 1], &bvh.nodes[2 * k]] {
+                if k > 0 {
+                    for i in 0..3 {
+                        assert!(c.lo[i] >= parent.lo[i] && c.hi[i] <= parent.hi[i]);
+                    }
+                }
+                if *c == BvhChild::EMPTY {
+                    assert_eq!(k, 0, "only a one-leaf root has an empty child");
+                    continue;
+                }
+                if c.count > 0 {
+                    leaves += 1;
+                    assert!(c.count as usize <= MAX_LEAF.max(1));
+                    for p in c.link..c.link + c.count {
+                        covered[p as usize] += 1;
+                        let b = &bounds[bvh.order[p as usize] as usize];
+                        for i in 0..3 {
+                            assert!((c.lo[i] as f64) < b.lo[i] && (c.hi[i] as f64) > b.hi[i]);
+                        }
+                    }
+                } else {
+                    stack.push((c.link as usize, d + 1, Aabb { lo: c.lo, hi: c.hi }));
+                }
+            }
+        }
+        assert_eq!(visited, bvh.node_count(), "every node reached once");
+        assert!(
+            covered.iter().all(|&c| c == 1),
+            "every primitive in one leaf"
+        );
+        assert_eq!(leaves, bvh.leaves);
+        assert_eq!(depth, bvh.depth);
+    }
+
+    #[test]
+    fn random_scenes_build_valid_trees() {
+        for (seed, n) in [(1, 1), (2, 2), (3, 9), (4, 100), (5, 5000), (6, 20_000)] {
+            let mut r = rng(seed);
+            let pts: Vec<_> = (0..n)
+                .map(|_| ([r() * 100.0, r() * 10.0, r()], r() * 0.5))
+                .collect();
+            let b = bounds_of(&pts);
+            let bvh = build(&b, &|_, _, _| {});
+            check(&bvh, &b);
+            assert!(bvh.node_count() < n.max(2));
+        }
+    }
+
+    /// A pile of copies (every centroid at one point) and a line of
+    /// spheres whose sizes grow geometrically (a deep tree under the
+    /// heuristic) both stay within the traversal's stack.
+    #[test]
+    fn degenerate_scenes_stay_within_the_stack() {
+        let pile = bounds_of(&vec![([1.0, 2.0, 3.0], 1.0); 10_000]);
+        let bvh = build(&pile, &|_, _, _| {});
+        check(&bvh, &pile);
+        assert!(bvh.depth <= ceil_log2(10_000));
+        let line: Vec<_> = (0..3000)
+            .map(|i| {
+                let x = 1.01f64.powi(i);
+                ([x, 0.0, 0.0], x * 1e-3)
+            })
+            .collect();
+        let b = bounds_of(&line);
+        let bvh = build(&b, &|_, _, _| {});
+        check(&bvh, &b);
+        assert!(bvh.depth < BVH_STACK_SIZE);
+    }
+
+    /// Two clusters far apart: the root separates them, whatever the
+    /// primitives' order.
+    #[test]
+    fn the_heuristic_separates_clusters() {
+        let mut r = rng(7);
+        let mut pts = Vec::new();
+        for k in 0..200 {
+            let x = if k % 2 == 0 { 0.0 } else { 1000.0 };
+            pts.push(([x + r(), r(), r()], 0.1));
+        }
+        let b = bounds_of(&pts);
+        let bvh = build(&b, &|_, _, _| {});
+        check(&bvh, &b);
+        let (l, rt) = (&bvh.nodes[0], &bvh.nodes[1]);
+        assert!(l.hi[0] < 10.0 && rt.lo[0] > 990.0 || rt.hi[0] < 10.0 && l.lo[0] > 990.0);
+    }
+
+    #[test]
+    fn outward_rounding() {
+        for x in [0.1f64, -0.1, 1e-30, 3.0, 1e20, -7.25] {
+            assert!(round_down(x) as f64 <= x);
+            assert!(round_up(x) as f64 >= x);
+            assert!(round_up(x) as f64 - round_down(x) as f64 <= (x.abs() * 2.4e-7));
+        }
+        assert_eq!(ceil_log2(1), 0);
+        assert_eq!(ceil_log2(2), 1);
+        assert_eq!(ceil_log2(5), 3);
+    }
+}

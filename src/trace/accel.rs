@@ -1,0 +1,113 @@
+//! The tracer's two queries over the whole scene: twin of
+//! `shaders/accel.glsl`. Each tests the unbounded primitives (planes,
+//! unclipped quadrics, giants) and then walks the structure the packed
+//! scene carries (`Globals::flags.y`): the grid (`grid.rs`) or the BVH
+//! (`bvh.rs`), one traversal each serving both queries (`query.rs`).
+
+use super::bvh::bvh_traverse;
+use super::grid::grid_traverse;
+use super::intersect::{intersect, Hit, RayPre};
+use super::math::{Ray, Real, V3};
+use super::query::{query_prim, Query, Work};
+use super::SceneView;
+use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LIGHTS};
+
+/// Runs query `q`: the unbounded primitives, then the structure in use.
+#[inline(always)]
+pub fn accel_traverse<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    q: &mut Query<F>,
+    work: &mut Work,
+) {
+    let g = s.globals;
+    for i in g.counts[0]..g.counts[1] {
+        if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
+            return;
+        }
+    }
+    if g.flags[1] == ACCEL_BVH {
+        bvh_traverse(s, ray, pre, q, work);
+    } else {
+        grid_traverse(s, ray, pre, q, work);
+    }
+}
+
+/// The nearest hit along the ray with t < tmax: (hit, primitive index).
+pub fn closest_hit<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    tmax: F,
+    work: &mut Work,
+) -> Option<(Hit<F>, u32)> {
+    let mut q = Query::closest(tmax);
+    accel_traverse(s, ray, pre, &mut q, work);
+    q.hit
+}
+
+/// Light reaching the end of a shadow feeler of length `dist`: every
+/// primitive crossing it multiplies by its k_t (opaque ones give zero).
+/// Shadow feelers are not refracted. `light` indexes the shadow cache
+/// (≥ `SHADOW_CACHE_LIGHTS`: none), whose primitive is tested first.
+pub fn transmittance<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    dist: F,
+    light: usize,
+    work: &mut Work,
+) -> V3<F> {
+    let cached = if light < SHADOW_CACHE_LIGHTS as usize {
+        work.shadow_cache[light]
+    } else {
+        0
+    };
+    if cached != 0 {
+        work.tests += 1;
+        if intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist).is_some() {
+            return V3::zero();
+        }
+    }
+    let mut q = Query::shadow(dist, light);
+    accel_traverse(s, ray, pre, &mut q, work);
+    if q.done {
+        V3::zero()
+    } else {
+        q.trans
+    }
+}
+
+/// Brute force over every primitive, no structure: the reference the
+/// structures must equal (tests).
+pub fn closest_hit_brute<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    tmax: F,
+) -> Option<(Hit<F>, u32)> {
+    let mut q = Query::closest(tmax);
+    let mut work = Work::default();
+    for (i, prim) in s.prims.iter().enumerate() {
+        query_prim(s, &mut q, prim, i as u32, ray, pre, &mut work);
+    }
+    q.hit
+}
+
+/// Brute force for a feeler: every primitive, in index order.
+pub fn transmittance_brute<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    dist: F,
+) -> V3<F> {
+    let mut q = Query::shadow(dist, SHADOW_CACHE_LIGHTS as usize);
+    let mut work = Work::default();
+    for (i, prim) in s.prims.iter().enumerate() {
+        if query_prim(s, &mut q, prim, i as u32, ray, pre, &mut work) {
+            return V3::zero();
+        }
+    }
+    q.trans
+}

@@ -1,0 +1,121 @@
+//! The two questions a traversal answers, and what it does with each
+//! primitive it reaches: twin of `shaders/query.glsl`.
+//!
+//! Every acceleration structure has one traversal (`grid::grid_traverse`,
+//! `bvh::bvh_traverse`) that serves both queries: it hands each primitive
+//! to `query_prim` and bounds its walk by `Query::t`. For the closest hit
+//! `t` is the best hit so far and shrinks with every hit; for a shadow
+//! feeler (any hit, with the transmittance of every transparent blocker)
+//! it is the feeler's length and stays, and the walk stops once an opaque
+//! blocker has made the light zero (`Query::done`).
+
+use super::intersect::{intersect, Hit, RayPre};
+use super::math::{Ray, Real, V3};
+use super::SceneView;
+use crate::constants::SHADOW_CACHE_LIGHTS;
+use crate::pack::layout::Prim;
+
+/// Per-thread scratch of the tracer: counters of intersection work (for
+/// tests and profiling) and the shadow cache.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Work {
+    /// Primitive intersection tests.
+    pub tests: u64,
+    /// Grid cells visited.
+    pub cells: u64,
+    /// BVH interior nodes visited (each one tests its two children's boxes).
+    pub nodes: u64,
+    /// Shadow cache (Haines & Greenberg's "last blocker"): per light, 1 + the
+    /// index of the opaque primitive that last blocked a feeler to it (0:
+    /// none). Tested first, it answers most shadowed feelers without a
+    /// traversal. It never changes a result: an opaque blocker makes the
+    /// transmittance exactly zero whatever else the feeler crosses.
+    pub shadow_cache: [u32; SHADOW_CACHE_LIGHTS as usize],
+}
+
+impl Work {
+    /// Adds `o`'s counters (not its cache).
+    pub fn add(&mut self, o: &Work) {
+        self.tests += o.tests;
+        self.cells += o.cells;
+        self.nodes += o.nodes;
+    }
+}
+
+/// One query in progress.
+#[derive(Clone, Copy, Debug)]
+pub struct Query<F> {
+    /// Hits count only below this distance: the best hit so far (closest
+    /// hit), or the feeler's length (shadow).
+    pub t: F,
+    /// Any hit (a shadow feeler) rather than the closest.
+    pub shadow: bool,
+    /// Shadow: the light's slot in the shadow cache (≥
+    /// `SHADOW_CACHE_LIGHTS`: none).
+    pub light: usize,
+    /// Closest hit: the best hit and its primitive.
+    pub hit: Option<(Hit<F>, u32)>,
+    /// Shadow: the product of the k_t of the blockers found so far.
+    pub trans: V3<F>,
+    /// Shadow: an opaque blocker was found (the walk may stop).
+    pub done: bool,
+}
+
+impl<F: Real> Query<F> {
+    /// The nearest hit below `tmax`.
+    pub fn closest(tmax: F) -> Self {
+        Query {
+            t: tmax,
+            shadow: false,
+            light: SHADOW_CACHE_LIGHTS as usize,
+            hit: None,
+            trans: V3::splat(F::one()),
+            done: false,
+        }
+    }
+
+    /// The light left at the end of a feeler of length `dist` towards
+    /// light `light`.
+    pub fn shadow(dist: F, light: usize) -> Self {
+        Query {
+            t: dist,
+            shadow: true,
+            light,
+            hit: None,
+            trans: V3::splat(F::one()),
+            done: false,
+        }
+    }
+}
+
+/// Tests `prim` (primitive `i`) for query `q`; true when the query is
+/// done (an opaque blocker for a feeler: nothing further can change the
+/// answer).
+#[inline(always)]
+pub fn query_prim<F: Real>(
+    s: &SceneView,
+    q: &mut Query<F>,
+    prim: &Prim,
+    i: u32,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    work: &mut Work,
+) -> bool {
+    work.tests += 1;
+    if let Some(h) = intersect(prim, s.extra, ray, pre, q.t) {
+        if q.shadow {
+            let kt = V3::of(&s.materials[prim.material() as usize].kt);
+            q.trans = q.trans.mul_elem(kt);
+            if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
+                work.shadow_cache[q.light] = i + 1;
+            }
+            if q.trans.max_elem() <= F::zero() {
+                q.done = true;
+            }
+        } else {
+            q.t = h.t;
+            q.hit = Some((h, i));
+        }
+    }
+    q.done
+}

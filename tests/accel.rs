@@ -1,0 +1,373 @@
+//! The acceleration structures against brute force and against each
+//! other (docs/method.md, "Bounding-volume hierarchy"): on random scenes
+//! of spheres, triangles, boxes and cones in opaque and transparent
+//! materials, both queries of both structures equal the test of every
+//! primitive, the two structures render the same image, and the shadow
+//! cache changes no answer.
+//!
+//! Tolerance: none. Every comparison is exact, because both structures
+//! hand the same primitives to the same intersection routine with the same
+//! `tmax` semantics, so the nearest hit is the same f32 distance; the
+//! transmittance is a product whose order is the structure's, so the
+//! transparent materials' k_t here are powers of two (products exact in
+//! any order). Two primitives hit at exactly the same f32 distance
+//! (coincident surfaces) may resolve to either one; random scenes have
+//! none, so the tests compare the primitive's distance, and images bit
+//! for bit.
+
+use glam::DVec3;
+use proptest::prelude::*;
+use std::path::PathBuf;
+use whitted::pack::{self, Accel, Packed, Settings};
+use whitted::scene::{Camera, Light, Material, Object, Scene, Shape};
+use whitted::trace::accel::{closest_hit, closest_hit_brute, transmittance, transmittance_brute};
+use whitted::trace::intersect::RayPre;
+use whitted::trace::math::{v3, Ray, V3};
+use whitted::trace::query::Work;
+use whitted::trace::SceneView;
+
+fn v(x: f64, y: f64, z: f64) -> DVec3 {
+    DVec3::new(x, y, z)
+}
+
+/// xorshift64: deterministic scenes from a seed.
+struct Rng(u64);
+
+impl Rng {
+    fn f(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `count` random primitives in [−5, 5]³ (clustered when `clustered`: a
+/// few dense clumps, the case the BVH is for), a floor polygon, and four
+/// materials: matte, mirror, and glass of k_t 0.5 and 0.25.
+fn random_scene(seed: u64, count: usize, clustered: bool) -> Scene {
+    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let centres: Vec<DVec3> = (0..4)
+        .map(|_| v(r.f() * 8.0 - 4.0, r.f() * 8.0 - 4.0, r.f() * 8.0 - 4.0))
+        .collect();
+    let mut objects = vec![Object {
+        shape: Shape::Polygon {
+            vertices: vec![
+                v(-30.0, -30.0, -6.0),
+                v(30.0, -30.0, -6.0),
+                v(30.0, 30.0, -6.0),
+                v(-30.0, 30.0, -6.0),
+            ],
+        },
+        material: 1,
+    }];
+    for i in 0..count {
+        let c = if clustered {
+            centres[i % 4] + v(r.f() - 0.5, r.f() - 0.5, r.f() - 0.5) * 1.5
+        } else {
+            v(r.f() * 10.0 - 5.0, r.f() * 10.0 - 5.0, r.f() * 10.0 - 5.0)
+        };
+        let s = if clustered { 0.3 } else { 1.0 };
+        let shape = match i % 5 {
+            0 | 1 => Shape::Sphere {
+                center: c,
+                radius: (0.05 + r.f() * 0.8) * s,
+            },
+            2 => Shape::Triangle {
+                vertices: [
+                    c,
+                    c + v(r.f(), r.f(), 0.0) * s,
+                    c + v(0.0, r.f(), r.f() + 0.1) * s,
+                ],
+                normals: None,
+            },
+            3 => Shape::Box {
+                min: c,
+                max: c + v(r.f() + 0.01, r.f() + 0.01, r.f() + 0.01) * s,
+            },
+            _ => Shape::Cone {
+                base: c,
+                base_radius: 0.2 * s,
+                apex: c + v(r.f() - 0.5, r.f() - 0.5, r.f() + 0.2) * s,
+                apex_radius: 0.05 * s,
+            },
+        };
+        objects.push(Object {
+            shape,
+            material: (i % 4) as u32,
+        });
+    }
+    let glass = |kt: f64| Material {
+        name: format!("glass {kt}"),
+        kt: DVec3::splat(kt),
+        ior: 1.3,
+        ..Material::default()
+    };
+    Scene {
+        camera: Camera {
+            from: v(0.0, -20.0, 3.0),
+            at: DVec3::ZERO,
+            up: v(0.0, 0.0, 1.0),
+            fov: 45.0,
+            width: 24,
+            height: 18,
+        },
+        background: v(0.2, 0.3, 0.5),
+        ambient: DVec3::splat(0.1),
+        lights: vec![
+            Light {
+                position: v(8.0, -10.0, 12.0),
+                color: DVec3::ONE,
+                falloff: [1.0, 0.0, 0.0],
+            },
+            Light {
+                position: v(-9.0, 4.0, 6.0),
+                color: DVec3::splat(0.5),
+                falloff: [1.0, 0.0, 0.0],
+            },
+        ],
+        materials: vec![
+            Material::default(),
+            Material {
+                name: "mirror".into(),
+                kr: DVec3::splat(0.5),
+                ..Material::default()
+            },
+            glass(0.5),
+            glass(0.25),
+        ],
+        objects,
+        source: PathBuf::from("random"),
+    }
+}
+
+fn pack_with(s: &Scene, accel: Accel) -> Packed {
+    let p = pack::pack(
+        s,
+        &Settings {
+            accel,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(p.structure(), accel);
+    p
+}
+
+type RaySpec = ([f32; 3], [f32; 3], f32);
+
+fn ray_of((o, d, _): &RaySpec) -> Option<(Ray<f32>, RayPre<f32>)> {
+    let d = v3(d[0], d[1], d[2]);
+    if d.length() < 1e-3 {
+        return None;
+    }
+    let d = d.normalize();
+    Some((
+        Ray {
+            o: v3(o[0], o[1], o[2]),
+            d,
+        },
+        RayPre::new(d, true),
+    ))
+}
+
+/// Both queries of the packed scene's structure against brute force.
+fn check_against_brute(p: &Packed, rays: &[RaySpec]) -> Result<(), TestCaseError> {
+    let s = SceneView::new(p);
+    for spec in rays {
+        let Some((ray, pre)) = ray_of(spec) else {
+            continue;
+        };
+        let mut work = Work::default();
+        let a = closest_hit(&s, &ray, &pre, f32::INFINITY, &mut work);
+        let b = closest_hit_brute(&s, &ray, &pre, f32::INFINITY);
+        // Each primitive is tested at most once per ray.
+        prop_assert!(work.tests <= p.prims.len() as u64);
+        prop_assert_eq!(a.map(|h| h.0.t), b.map(|h| h.0.t), "{:?}", p.structure());
+        let dist = spec.2;
+        let mut work = Work::default();
+        let ta = transmittance(&s, &ray, &pre, dist, usize::MAX, &mut work);
+        let tb = transmittance_brute(&s, &ray, &pre, dist);
+        prop_assert_eq!(ta, tb, "{:?}: feeler of length {}", p.structure(), dist);
+    }
+    Ok(())
+}
+
+fn ray_strategy() -> impl Strategy<Value = Vec<RaySpec>> {
+    prop::collection::vec(
+        (
+            prop::array::uniform3(-12.0f32..12.0),
+            prop::array::uniform3(-1.0f32..1.0),
+            0.1f32..30.0,
+        ),
+        48,
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// The BVH's closest hit and transmittance equal brute force over
+    /// every primitive, for random scenes (uniform and clustered) and
+    /// random rays from outside and inside, and test each primitive at
+    /// most once.
+    #[test]
+    fn bvh_queries_equal_brute_force(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        rays in ray_strategy(),
+    ) {
+        let s = random_scene(seed, count, clustered);
+        check_against_brute(&pack_with(&s, Accel::Bvh), &rays)?;
+    }
+
+    /// The same for the grid (its closest hit has its own proptest in
+    /// tests/render.rs; this adds the shadow query and the cones).
+    #[test]
+    fn grid_queries_equal_brute_force(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        rays in ray_strategy(),
+    ) {
+        let s = random_scene(seed, count, clustered);
+        check_against_brute(&pack_with(&s, Accel::Grid), &rays)?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Grid and BVH render the same image, bit for bit, with the same ray
+    /// counts: the same closest hits, the same transmittances.
+    #[test]
+    fn grid_and_bvh_render_the_same_image(
+        seed in 0u64..1000,
+        count in 1usize..400,
+        clustered: bool,
+    ) {
+        let s = random_scene(seed, count, clustered);
+        let g = whitted::cpu::render(&pack_with(&s, Accel::Grid), &|_, _| {});
+        let b = whitted::cpu::render(&pack_with(&s, Accel::Bvh), &|_, _| {});
+        prop_assert!(g.stats.eye_hit > 0);
+        prop_assert_eq!(g.stats, b.stats);
+        let differ = g.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();
+        prop_assert_eq!(differ, 0, "{} of {} pixels differ", differ, g.pixels.len());
+    }
+}
+
+/// The last-blocker cache changes no transmittance: feelers from a
+/// raster of points on the floor to the lights, each answered with the cache its predecessors
+/// left (as the tracer does) and with an empty one, on both structures;
+/// and it saves work (intersection tests, cells and nodes visited: about
+/// a quarter here).
+#[test]
+fn the_shadow_cache_changes_no_answer() {
+    for accel in [Accel::Grid, Accel::Bvh] {
+        for seed in 0..6 {
+            let s = random_scene(seed, 400, false);
+            let p = pack_with(&s, accel);
+            let view = SceneView::new(&p);
+            let mut cached = Work::default();
+            let mut fresh_work = 0;
+            let mut blocked = 0;
+            // Packed coordinates are relative to the camera.
+            let eye = s.camera.from.as_vec3();
+            // Points on the floor under the primitives, in raster order
+            // (neighbours' feelers meet the same blockers, as a tile's do).
+            for k in 0..2 * 40 * 40 {
+                let (light, i, j) = (k / 1600, k % 40, k / 40 % 40);
+                let o = v3(
+                    i as f32 * 0.25 - 5.0 - eye.x,
+                    j as f32 * 0.25 - 5.0 - eye.y,
+                    -5.9 - eye.z,
+                );
+                let lv = V3::of(&p.lights[light].pos) - o;
+                let dist = lv.length();
+                let d = lv / dist;
+                let ray = Ray { o, d };
+                let pre = RayPre::new(d, true);
+                let with = transmittance(&view, &ray, &pre, dist, light, &mut cached);
+                let mut fresh = Work::default();
+                let without = transmittance(&view, &ray, &pre, dist, light, &mut fresh);
+                assert_eq!(with, without, "{accel:?} seed {seed} feeler {k}");
+                fresh_work += fresh.tests + fresh.cells + fresh.nodes;
+                blocked += (without.max_elem() == 0.0) as u32;
+            }
+            assert!(blocked > 200, "{accel:?} seed {seed}: {blocked} blocked");
+            let with_cache = cached.tests + cached.cells + cached.nodes;
+            assert!(
+                with_cache < fresh_work,
+                "{accel:?} seed {seed}: the cache saved nothing ({with_cache} vs {fresh_work})",
+            );
+        }
+    }
+}
+
+/// The BVH does what it is for: on a clustered scene it tests fewer
+/// primitives than the grid (a third fewer at least; measured: half).
+#[test]
+fn the_bvh_tests_fewer_primitives_on_clustered_scenes() {
+    let s = random_scene(3, 2000, true);
+    let g = whitted::cpu::render(&pack_with(&s, Accel::Grid), &|_, _| {});
+    let b = whitted::cpu::render(&pack_with(&s, Accel::Bvh), &|_, _| {});
+    assert_eq!(g.pixels, b.pixels);
+    assert!(b.work.nodes > 0 && b.work.cells == 0);
+    assert!(g.work.cells > 0 && g.work.nodes == 0);
+    assert!(
+        3 * b.work.tests < 2 * g.work.tests,
+        "BVH {} tests, grid {}",
+        b.work.tests,
+        g.work.tests
+    );
+}
+
+/// Rays parallel to the axes and to the axis planes (components exactly
+/// 0, 1/d = ±∞), from lattice points on the primitives' own planes, on a
+/// lattice of boxes and spheres: both structures equal brute force.
+#[test]
+fn axis_parallel_rays_equal_brute_force() {
+    let mut objects = Vec::new();
+    for i in 0..64 {
+        let c = v((i % 4) as f64, (i / 4 % 4) as f64, (i / 16) as f64) * 2.0;
+        let shape = if i % 3 == 0 {
+            Shape::Sphere {
+                center: c,
+                radius: 0.5,
+            }
+        } else {
+            Shape::Box {
+                min: c,
+                max: c + DVec3::ONE,
+            }
+        };
+        objects.push(Object { shape, material: 0 });
+    }
+    let mut s = random_scene(1, 0, false);
+    s.objects = objects;
+    s.camera.from = DVec3::ZERO;
+    s.camera.at = v(1.0, 1.0, 1.0);
+    let mut dirs = Vec::new();
+    for d in [
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, -1.0],
+        [-1.0, 0.0, 1.0],
+    ] {
+        dirs.push(d);
+        dirs.push(d.map(|x: f32| -x));
+    }
+    let mut rays = Vec::new();
+    for k in 0..8 * 8 * 8 {
+        let o = [k % 8, k / 8 % 8, k / 64].map(|x| x as f32);
+        for d in &dirs {
+            rays.push((o, *d, 20.0));
+        }
+    }
+    for accel in [Accel::Grid, Accel::Bvh] {
+        check_against_brute(&pack_with(&s, accel), &rays).unwrap();
+    }
+}
