@@ -21,7 +21,7 @@
 //! arbitrary settings).
 
 use crate::budget::Budget;
-use crate::pack::{self as packing, Sampling, Settings};
+use crate::pack::{self as packing, Accel, Sampling, Settings};
 use crate::scene::{self, Files, Scene, Shape};
 use arbitrary::{Arbitrary, Unstructured};
 use glam::DVec3;
@@ -368,6 +368,7 @@ fn small_settings() -> Settings {
         spp: 1,
         sampling: Sampling::Centers,
         grid: None,
+        accel: Accel::Auto,
         budget: Budget::bytes(MEMORY_LIMIT),
     }
 }
@@ -594,6 +595,8 @@ pub struct RenderSpec {
     pub corners: bool,
     pub min_weight: u8,
     pub grid: Option<[u8; 3]>,
+    /// Without `grid`: the BVH when set, else `auto`'s choice.
+    pub bvh: bool,
 }
 
 impl RenderSpec {
@@ -612,6 +615,11 @@ impl RenderSpec {
                 Sampling::Centers
             },
             grid: self.grid.map(|g| g.map(|n| n as u32 % 16 + 1)),
+            accel: match (self.grid, self.bvh) {
+                (Some(_), _) => Accel::Grid,
+                (None, true) => Accel::Bvh,
+                (None, false) => Accel::Auto,
+            },
             budget: Budget::bytes(MEMORY_LIMIT),
         }
     }
@@ -854,6 +862,7 @@ mod tests {
                 corners: false,
                 min_weight: 4,
                 grid: None,
+                bvh: false,
             },
         }
     }
@@ -918,13 +927,22 @@ mod tests {
             },
         ]);
         let text = s.to_toml();
-        match pack_spec(&s) {
+        let grid = match pack_spec(&s) {
             Outcome::Rendered(r) => {
                 assert_eq!(r.objects, 9, "{text}");
                 assert_eq!((r.width, r.height), (8, 8));
                 assert!(r.mean > 0.0, "something is lit");
+                r
             }
             o => panic!("{o:?}\n{text}"),
+        };
+        // The same through an explicit grid and through the BVH: the
+        // same image, so the same mean.
+        for (grid_sides, bvh) in [(Some([3, 3, 3]), false), (None, true)] {
+            let mut o = s.clone();
+            o.render.grid = grid_sides;
+            o.render.bvh = bvh;
+            assert_eq!(pack_spec(&o), Outcome::Rendered(grid.clone()), "{text}");
         }
     }
 
