@@ -151,3 +151,16 @@ fn obj_face_indices_tobj_cannot_take() {
         assert!(m.contains(want), "{name}: {m}");
     }
 }
+
+/// pack: a camera whose `up` was subnormal (1.25e-321) passed the reader,
+/// and the harness's own check found `up × (at − from)` zero: the cross
+/// product underflowed. The reader now refuses such an `up` by its
+/// length, naming it (src/scene/validate.rs), and tests parallelism on
+/// vectors scaled to a largest component of 1.
+#[test]
+fn a_subnormal_camera_up() {
+    let o = finding("pack", "camera-up-subnormal.bin");
+    let m = o.message().unwrap_or_else(|| panic!("{o:?}"));
+    assert!(m.starts_with("fuzz.toml:4:6: camera.up"), "{m}");
+    assert!(m.contains("1.25e-321"), "{m}");
+}
