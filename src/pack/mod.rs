@@ -743,7 +743,7 @@ pub fn fill_ratio(bounds: &[Bounds]) -> f64 {
     let ext = |b: &Bounds| [0, 1, 2].map(|i| (b.hi[i] - b.lo[i]).max(0.0));
     let e = ext(&all);
     let floor = e.iter().cloned().fold(0.0, f64::max) / 1000.0;
-    if !(floor > 0.0) || !floor.is_finite() {
+    if !floor.is_finite() || floor <= 0.0 {
         return 1.0; // every primitive at one point: nothing to separate
     }
     let vol = |e: [f64; 3]| e.iter().map(|x| x.max(floor) / floor).product::<f64>();
