@@ -39,8 +39,12 @@ pub struct Case {
 /// Who renders.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Engine {
-    /// `whitted render --backend cpu|gpu`.
-    Whitted { backend: String, label: String },
+    /// `whitted render --backend cpu|gpu [--accel A]`.
+    Whitted {
+        backend: String,
+        accel: Option<String>,
+        label: String,
+    },
     /// POV-Ray 3.7 on the scene exported by `whitted export`.
     PovRay,
 }
@@ -64,6 +68,8 @@ pub struct Sample {
     /// Intersection tests and grid cells visited, per ray.
     pub tests_per_ray: Option<f64>,
     pub cells_per_ray: Option<f64>,
+    /// BVH nodes visited per ray.
+    pub nodes_per_ray: Option<f64>,
     pub rays: Option<u64>,
     pub peak: Option<u64>,
 }
@@ -113,6 +119,8 @@ pub struct Row {
     pub prep: Option<Summary>,
     pub tests_per_ray: Option<f64>,
     pub cells_per_ray: Option<f64>,
+    /// BVH nodes visited per ray.
+    pub nodes_per_ray: Option<f64>,
     pub rays: Option<u64>,
     pub mrays_per_s: Option<f64>,
     pub peak_bytes: Option<u64>,
@@ -263,7 +271,7 @@ fn timed(mut cmd: Command, what: &str) -> Result<(f64, Option<u64>, std::process
 /// One run of `engine` on `case`, writing its image to `image`.
 pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Result<Sample> {
     match engine {
-        Engine::Whitted { backend, .. } => {
+        Engine::Whitted { backend, accel, .. } => {
             let stats = image.with_extension("json");
             let mut cmd = Command::new(&plan.exe);
             cmd.args(["-q", "render"])
@@ -271,6 +279,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                 .arg("-o")
                 .arg(image)
                 .args(["--backend", backend])
+                .args(accel.iter().flat_map(|a| ["--accel", a.as_str()]))
                 .arg("--stats")
                 .arg(&stats)
                 .args(&case.args);
@@ -312,6 +321,10 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                     .as_u64()
                     .filter(|_| total > 0)
                     .map(|c| c as f64 / total as f64),
+                nodes_per_ray: j["work"]["nodes_visited"]
+                    .as_u64()
+                    .filter(|_| total > 0)
+                    .map(|c| c as f64 / total as f64),
                 rays: Some(total),
                 peak: j["peak_memory_bytes"].as_u64().or(polled),
             })
@@ -350,6 +363,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                 prep: None,
                 tests_per_ray: None,
                 cells_per_ray: None,
+                nodes_per_ray: None,
                 rays: None,
                 peak,
             })
@@ -480,6 +494,7 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<Vec<Row>> {
                 prep: Summary::of(&preps),
                 tests_per_ray: last.and_then(|x| x.tests_per_ray),
                 cells_per_ray: last.and_then(|x| x.cells_per_ray),
+                nodes_per_ray: last.and_then(|x| x.nodes_per_ray),
                 rays,
                 mrays_per_s: match (rays, render) {
                     (Some(r), Some(t)) if t.median > 0.0 => Some(r as f64 / t.median / 1e6),
@@ -595,6 +610,7 @@ pub fn csv(rows: &[Row]) -> Result<String> {
         "flip_vs_povray",
         "tests_per_ray",
         "cells_per_ray",
+        "nodes_per_ray",
     ])?;
     let o = |v: Option<f64>| v.map(|x| format!("{x}")).unwrap_or_default();
     for r in rows {
@@ -621,6 +637,7 @@ pub fn csv(rows: &[Row]) -> Result<String> {
             o(r.flip_vs_povray),
             o(r.tests_per_ray),
             o(r.cells_per_ray),
+            o(r.nodes_per_ray),
         ])?;
     }
     Ok(String::from_utf8(
@@ -827,6 +844,7 @@ mod tests {
             prep: Summary::of(&[0.05]),
             tests_per_ray: Some(5.5),
             cells_per_ray: Some(9.0),
+            nodes_per_ray: None,
             rays: Some(1_000_000),
             mrays_per_s: Some(5.0),
             peak_bytes: Some(20_000_000),

@@ -48,6 +48,11 @@ pub struct BenchArgs {
     /// device, lavapipe included).
     #[arg(long, value_delimiter = ',', value_parser = ["cpu", "gpu"])]
     pub backends: Vec<String>,
+    /// Acceleration structures to time (comma-separated): every backend
+    /// once per structure, labelled e.g. cpu/bvh; default: `auto`'s choice
+    /// only (docs/method.md, "Choosing the structure").
+    #[arg(long, value_delimiter = ',', value_parser = ["grid", "bvh", "auto"])]
+    pub accel: Vec<String>,
     /// Also render each scene with POV-Ray 3.7 (exported by `whitted
     /// export`, same size and depth, all cores, no anti-aliasing: pixel
     /// centres, or the corner rays of --preset spd),
@@ -211,7 +216,21 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
         } else {
             "cpu".into()
         };
-        out.push(Engine::Whitted { backend: b, label });
+        if a.accel.is_empty() {
+            out.push(Engine::Whitted {
+                backend: b,
+                accel: None,
+                label,
+            });
+        } else {
+            for accel in &a.accel {
+                out.push(Engine::Whitted {
+                    backend: b.clone(),
+                    accel: Some(accel.clone()),
+                    label: format!("{label}/{accel}"),
+                });
+            }
+        }
     }
     if a.vs.is_some() {
         let ok = std::process::Command::new("povray")
