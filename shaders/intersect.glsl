@@ -163,6 +163,29 @@ float floatAt(uint base, uint i) {
     return extra[base + i / 4u][i % 4u];
 }
 
+// The code of the cell of a banded polygon that (px, py) falls in:
+// CELL_IN, CELL_OUT, or CELL_EDGE (take the crossings test), which is also
+// the answer for a polygon without cells and for a point outside the
+// cells' range (src/pack/polygon.rs, cells).
+uint polygonCell(Prim prim, uint lists, float px, float py) {
+    uint at = uint(prim.c.w);
+    if (at == 0u) {
+        return CELL_EDGE;
+    }
+    float k = prim.c.z;
+    float uMin = floatAt(lists, at);
+    float invW = floatAt(lists, at + 1u);
+    float m = floatAt(lists, at + 2u);
+    precise float fb = floor((py - prim.c.x) * prim.c.y);
+    precise float fm = floor((px - uMin) * invW);
+    // Comparisons false for a NaN: such a point takes the test.
+    bool within = fb >= 0.0 && fb < k && fm >= 0.0 && fm < m;
+    if (!within) {
+        return CELL_EDGE;
+    }
+    return uint(floatAt(lists, at + 3u + uint(fb) * uint(m) + uint(fm)));
+}
+
 // Planar polygon: the plane, then a 2D test in the plane of the two axes
 // other than the normal's largest (the vertices are packed projected,
 // pack::polygon): all edges on one side for convex polygons, the
@@ -196,6 +219,12 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     uint bands = uint(prim.c.z);
     bool banded = !convex && bands > 0u;
     uint lists = base + (count + 1u) / 2u;
+    // A cell wholly inside or outside answers for the test.
+    uint cell = polygonCell(prim, lists, px, py);
+    if (cell != CELL_EDGE) {
+        h = ph;
+        return cell == CELL_IN;
+    }
     // Edges [lo, hi): every edge, or the hit point's band's list.
     uint lo = 0u;
     uint hi = count;

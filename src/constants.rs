@@ -29,6 +29,11 @@ pub const BVH_STACK_SIZE: u32 = 64;
 /// Acceleration structures (`Globals::flags.y`): which one the tracers walk.
 pub const ACCEL_GRID: u32 = 0;
 pub const ACCEL_BVH: u32 = 1;
+/// Codes of a banded polygon's cells (`pack::polygon::cells`): every
+/// point outside, every point inside, or near an edge (test the edges).
+pub const CELL_OUT: u32 = 0;
+pub const CELL_IN: u32 = 1;
+pub const CELL_EDGE: u32 = 2;
 /// Primitive kinds (low 4 bits of `Prim::kind_mat`).
 pub const KIND_SPHERE: u32 = 0;
 pub const KIND_PLANE: u32 = 1;

@@ -6,16 +6,22 @@
 //!    normal's largest (`axes`), two to a vec4: `(u0, v0, u1, v1)`, ...;
 //! 2. for a non-convex polygon of `BAND_MIN_VERTICES` or more, edge bands:
 //!    the range of v cut into K bands (`Prim::c` = `[v_min, K / (v_max −
-//!    v_min), K, 0]`), then, as floats four to a vec4, the K + 1 offsets of
+//!    v_min), K, S]`), then, as floats four to a vec4, the K + 1 offsets of
 //!    each band's list and the lists of edges (edge j runs from vertex j − 1
-//!    to vertex j) whose v range meets the band or its neighbours.
+//!    to vertex j) whose v range meets the band or its neighbours;
+//! 3. from float S of that stream (S = 0: none), the cells (`cells`):
+//!    u_min, columns per unit of u, the column count M, and the K × M
+//!    codes `CELL_OUT`, `CELL_IN`, `CELL_EDGE`, band by band.
 //!
 //! The crossings test counts the edges that cross the horizontal line
 //! through the hit point; every such edge spans the point's v, so it is in
 //! the point's band (the margin of one band absorbs any rounding in
 //! computing a band index), and the test over a band's list gives the same
 //! parity as the test over all edges, bit for bit, in any float type. A
-//! 144-vertex gear face costs a dozen edge tests instead of 144.
+//! 144-vertex gear face costs a dozen edge tests instead of 144, and none
+//! at all for a point in a cell away from every edge.
+
+use crate::constants::{CELL_EDGE, CELL_IN, CELL_OUT};
 
 /// Non-convex polygons with at least this many vertices get edge bands.
 pub const BAND_MIN_VERTICES: usize = 16;
@@ -112,6 +118,18 @@ pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
     for l in &lists {
         floats.extend(l.iter().map(|&j| j as f32));
     }
+    // The cells after the lists: where they start in the stream (Prim::c.w,
+    // 0 for none), then u_min, columns per unit, the column count M and
+    // the K × M codes.
+    let cells_at = floats.len();
+    let has_cells = match cells(q, lo, inv_h, k) {
+        Some((u_min, inv_w, m, codes)) => {
+            floats.extend([u_min, inv_w, m as f32]);
+            floats.extend(codes.iter().map(|&c| c as f32));
+            true
+        }
+        None => false,
+    };
     extra.extend(floats.chunks(4).map(|c| {
         let mut v = [0.0f32; 4];
         v[..c.len()].copy_from_slice(c);
@@ -119,9 +137,104 @@ pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
     }));
     Packed2d {
         extra,
-        c: [lo, inv_h, k as f32, 0.0],
+        c: [
+            lo,
+            inv_h,
+            k as f32,
+            if has_cells { cells_at as f32 } else { 0.0 },
+        ],
         longest,
     }
+}
+
+/// Most columns of cells per band.
+pub const CELL_COLUMNS_MAX: usize = 32;
+
+/// Classifies the cells of a banded polygon: the K bands cut into M
+/// columns over the vertices' u range. A cell that no edge's box comes
+/// within a quarter cell of lies wholly inside or wholly outside, and every
+/// point the tracers file in it (by the f32 band and column of the hit
+/// point, whose rounding moves a point by far less than a quarter cell)
+/// gets from the crossings test the parity of the cell's centre: no edge
+/// is near enough for the test's rounding to decide a crossing either
+/// way. So the code answers for the test, bit for bit; `CELL_EDGE` cells
+/// take the test. Returns (u_min, columns per unit, M, codes band-major),
+/// or `None` when the u range is empty or not representable.
+pub fn cells(
+    q: &[[f32; 2]],
+    v_min: f32,
+    inv_h: f32,
+    k: usize,
+) -> Option<(f32, f32, usize, Vec<u32>)> {
+    let n = q.len();
+    let (u_lo, u_hi) = q
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), p| {
+            (l.min(p[0]), h.max(p[0]))
+        });
+    let m = k.min(CELL_COLUMNS_MAX);
+    if u_hi <= u_lo || m < 2 {
+        return None;
+    }
+    let inv_w = m as f32 / (u_hi - u_lo);
+    if !inv_w.is_finite() || !inv_h.is_finite() {
+        return None;
+    }
+    // Cell (b, c) covers u in u_lo + [c, c + 1] / inv_w, v in v_min + [b,
+    // b + 1] / inv_h; each grown by a quarter cell.
+    let (w, h) = (1.0 / inv_w as f64, 1.0 / inv_h as f64);
+    let mut codes = vec![CELL_OUT; k * m];
+    let mut near = vec![false; k * m];
+    // Edge j runs from vertex j − 1 to vertex j (a: the previous vertex).
+    let mut a = q[n - 1];
+    for &b in q {
+        let (ul, uh) = (a[0].min(b[0]) as f64, a[0].max(b[0]) as f64);
+        let (vl, vh) = (a[1].min(b[1]) as f64, a[1].max(b[1]) as f64);
+        // Cells whose grown rectangle meets the edge's box.
+        let c0 = (((ul - u_lo as f64) / w - 1.25).floor().max(0.0)) as usize;
+        let c1 = (((uh - u_lo as f64) / w + 0.25).floor().max(0.0) as usize).min(m - 1);
+        let b0 = (((vl - v_min as f64) / h - 1.25).floor().max(0.0)) as usize;
+        let b1 = (((vh - v_min as f64) / h + 0.25).floor().max(0.0) as usize).min(k - 1);
+        for bb in b0..=b1 {
+            for cc in c0..=c1 {
+                near[bb * m + cc] = true;
+            }
+        }
+        a = b;
+    }
+    // Each band's centre line crosses the edges at xs (even-odd, in
+    // f64); a clean cell's centre is inside when an odd number of them
+    // lie to its right.
+    let mut xs = Vec::new();
+    for bb in 0..k {
+        let py = v_min as f64 + (bb as f64 + 0.5) * h;
+        xs.clear();
+        let mut a = q[n - 1];
+        for &b in q {
+            let (ax, ay, bx, by) = (a[0] as f64, a[1] as f64, b[0] as f64, b[1] as f64);
+            if (ay > py) != (by > py) {
+                xs.push(ax + (py - ay) * (bx - ax) / (by - ay));
+            }
+            a = b;
+        }
+        xs.sort_by(f64::total_cmp);
+        let mut left = 0; // crossings at or left of the centre
+        for cc in 0..m {
+            let i = bb * m + cc;
+            let px = u_lo as f64 + (cc as f64 + 0.5) * w;
+            while left < xs.len() && xs[left] <= px {
+                left += 1;
+            }
+            codes[i] = if near[i] {
+                CELL_EDGE
+            } else if (xs.len() - left) % 2 == 1 {
+                CELL_IN
+            } else {
+                CELL_OUT
+            };
+        }
+    }
+    Some((u_lo, inv_w, m, codes))
 }
 
 /// Vertex `j`'s projected coordinates from the pairs at `extra[base..]`.
@@ -222,6 +335,63 @@ mod tests {
         // the vertices read back
         for (j, v) in q.iter().enumerate() {
             assert_eq!(vertex(&p.extra, 0, j), *v);
+        }
+    }
+
+    /// The cells answer as the crossings test over every edge does, for
+    /// points on a fine lattice over the polygon (many near the edges)
+    /// and vertices, in f32 and f64 as the tracers compute them; most
+    /// points in a gear face's box land in a cell that answers without a
+    /// test.
+    #[test]
+    fn a_cell_gives_the_parity_of_all_edges() {
+        use crate::pack::layout::Prim;
+        use crate::trace::intersect::polygon_cell;
+        for q in [star(72), star(24)] {
+            let p = pack(&q, false);
+            assert!(p.c[3] > 0.0, "a banded face gets cells");
+            let prim = Prim {
+                b: [q.len() as f32, 2.0, 0.0, p.longest as f32],
+                c: p.c,
+                data: 0,
+                ..Prim::default()
+            };
+            let (mut answered, mut total) = (0, 0);
+            let mut check = |px: f32, py: f32| {
+                let code = polygon_cell(&prim, &p.extra, px, py);
+                let code64 = polygon_cell(&prim, &p.extra, px as f64, py as f64);
+                let all = crossings(&q, px, py, 0..q.len());
+                for c in [code, code64] {
+                    if c != CELL_EDGE {
+                        assert_eq!(c == CELL_IN, all, "({px}, {py}): code {c}");
+                    }
+                }
+                if px.abs() <= 1.0 && py.abs() <= 1.0 {
+                    total += 1;
+                    if code != CELL_EDGE {
+                        answered += 1;
+                    }
+                }
+            };
+            for i in 0..=600 {
+                for j in 0..=600 {
+                    check(-1.2 + 2.4 * i as f32 / 600.0, -1.2 + 2.4 * j as f32 / 600.0);
+                }
+            }
+            for v in &q {
+                check(v[0], v[1]);
+                check(v[0].next_up(), v[1].next_down());
+            }
+            check(f32::NAN, 0.0);
+            // Within the polygon's box; the rest of the lattice takes the test.
+            eprintln!(
+                "{} vertices: {answered} of {total} answered by a cell",
+                q.len()
+            );
+            assert!(
+                answered * 4 > total,
+                "{answered} of {total} answered by a cell"
+            );
         }
     }
 

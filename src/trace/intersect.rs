@@ -187,6 +187,12 @@ pub fn polygon<F: Real>(prim: &Prim, extra: &[[f32; 4]], ray: &Ray<F>, tmax: F) 
     let base = prim.data as usize;
     let bands = prim.c[2] as usize;
     let lists = base + count.div_ceil(2);
+    // A cell wholly inside or outside answers for the test (pack::polygon).
+    match polygon_cell(prim, extra, px, py) {
+        CELL_IN => return Some(h),
+        CELL_OUT => return None,
+        _ => {}
+    }
     let (lo, hi) = polygon_edges(prim, extra, py);
     let zero = F::zero();
     let mut pos = false;
@@ -220,6 +226,33 @@ pub fn polygon<F: Real>(prim: &Prim, extra: &[[f32; 4]], ray: &Ray<F>, tmax: F) 
     } else {
         None
     }
+}
+
+/// The code of the cell of a banded polygon that (`px`, `py`) falls in:
+/// `CELL_IN`, `CELL_OUT`, or `CELL_EDGE` (take the crossings test), which
+/// is also the answer for a polygon without cells and for a point outside
+/// the cells' range (`pack::polygon::cells`).
+#[inline(always)]
+pub fn polygon_cell<F: Real>(prim: &Prim, extra: &[[f32; 4]], px: F, py: F) -> u32 {
+    let at = prim.c[3] as usize;
+    if at == 0 {
+        return CELL_EDGE;
+    }
+    let lists = prim.data as usize + (prim.b[0] as usize).div_ceil(2);
+    let k = prim.c[2];
+    let u_min = F::of(float_at(extra, lists, at));
+    let inv_w = F::of(float_at(extra, lists, at + 1));
+    let m = float_at(extra, lists, at + 2);
+    let fb = ((py - F::of(prim.c[0])) * F::of(prim.c[1])).floor();
+    let fm = ((px - u_min) * inv_w).floor();
+    let zero = F::zero();
+    // Comparisons false for a NaN: such a point takes the test.
+    let within = fb >= zero && fb < F::of(k) && fm >= zero && fm < F::of(m);
+    if !within {
+        return CELL_EDGE;
+    }
+    let (b, c) = (fb.to_usize().unwrap_or(0), fm.to_usize().unwrap_or(0));
+    float_at(extra, lists, at + 3 + b * m as usize + c) as u32
 }
 
 /// The edges a polygon test walks at plane coordinate `py` (the second of
