@@ -20,6 +20,31 @@ fn have_povray() -> bool {
         .is_ok()
 }
 
+/// Runs `whitted bench ARGS --csv FILE` in the repository; returns the
+/// CSV's text, header and rows.
+fn bench_csv(
+    args: &[&str],
+    csv: &std::path::Path,
+) -> (String, csv::StringRecord, Vec<csv::StringRecord>) {
+    let out = whitted()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .arg("--csv")
+        .arg(csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut r = csv::Reader::from_reader(text.as_bytes());
+    let header = r.headers().unwrap().clone();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    (text, header, rows)
+}
+
 #[test]
 fn bench_writes_a_row_per_case_and_engine() {
     let d = tempfile::tempdir().unwrap();
@@ -47,25 +72,10 @@ fn bench_writes_a_row_per_case_and_engine() {
         eprintln!("note: povray is not installed: --vs povray is not tested");
     }
     let root = env!("CARGO_MANIFEST_DIR");
-    let out = whitted()
-        .current_dir(root)
-        .args(&args)
-        .arg("--csv")
-        .arg(&csv)
-        .arg("--plot")
-        .arg(&plot)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = std::fs::read_to_string(&csv).unwrap();
-    let mut r = csv::Reader::from_reader(text.as_bytes());
-    let header = r.headers().unwrap().clone();
+    let plot_arg = plot.to_str().unwrap().to_string();
+    args.extend(["--plot", plot_arg.as_str()]);
+    let (_, header, rows) = bench_csv(&args, &csv);
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
     let examples = std::fs::read_dir(format!("{root}/scenes"))
         .unwrap()
         .filter(|e| {
@@ -138,10 +148,8 @@ fn bench_refuses_bad_requests_before_work() {
 fn bench_times_each_structure() {
     let d = tempfile::tempdir().unwrap();
     let csv = d.path().join("a.csv");
-    let root = env!("CARGO_MANIFEST_DIR");
-    let out = whitted()
-        .current_dir(root)
-        .args([
+    let (text, header, rows) = bench_csv(
+        &[
             "-q",
             "bench",
             "--suite",
@@ -160,21 +168,10 @@ fn bench_times_each_structure() {
             "cpu",
             "--accel",
             "grid,bvh",
-        ])
-        .arg("--csv")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
+        &csv,
     );
-    let text = std::fs::read_to_string(&csv).unwrap();
-    let mut r = csv::Reader::from_reader(text.as_bytes());
-    let header = r.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
     assert_eq!(rows.len(), 4, "{text}");
     for case in ["teapot-1", "balls-1"] {
         let of = |engine: &str| {
