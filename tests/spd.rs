@@ -1,8 +1,10 @@
 //! The SPD generators (src/gen/spd/): at their default sizes against the
-//! SPD's own NFF files when those are at hand (`WHITTED_SPD_DIR`, else
-//! `../shared/scenes/spd` beside the repo), and everywhere what needs no
-//! files: counts against the SPD's formulas, determinism, bounds, NFF
-//! round trips, and that each scene packs and renders.
+//! SPD's own NFF files object by object when those are at hand
+//! (`WHITTED_SPD_DIR`, else `../shared/scenes/spd` beside the repo), and
+//! everywhere against facts recorded from those files (`RECORDED`: kinds
+//! and counts, lights, bounds, mean point, radii, camera), the
+//! SPD's formulas, determinism, NFF round trips, and that each scene packs
+//! and renders.
 
 mod common;
 
@@ -206,7 +208,8 @@ fn default_sizes_match_the_spds_files() {
     if !dir.is_dir() {
         println!(
             "note: {} is absent (set WHITTED_SPD_DIR to the SPD's NFF files): the generators \
-             are checked against the SPD's formulas only",
+             are checked object by object only where the files are; everywhere against \
+             the facts recorded from them (default_sizes_match_the_recorded_originals)",
             dir.display()
         );
         return;
@@ -220,7 +223,11 @@ fn default_sizes_match_the_spds_files() {
         }
         let original = whitted::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let ours = spd::generate(s, None).unwrap();
-        let d = differences(&ours, &original);
+        let mut d = differences(&ours, &original);
+        // The record the test above uses everywhere is the file's.
+        if let Some(r) = facts_difference(&facts(&original), &recorded(s)) {
+            d.push(format!("RECORDED is stale: {r}"));
+        }
         println!(
             "{s}: {} objects, {} materials; {}",
             ours.objects.len(),
@@ -436,4 +443,263 @@ fn spd_counting_changes_counts_not_pixels() {
         a.stats,
         b.stats
     );
+}
+
+/// What the SPD's own files say of each scene at default size, recorded
+/// from `../shared/scenes/spd/*.nff` (`default_sizes_match_the_spds_files`
+/// checks the record against them where they are at hand), so that every
+/// clone checks the generators against the originals, not only against
+/// the SPD's formulas.
+struct Facts {
+    kinds: Vec<(&'static str, u64)>,
+    lights: usize,
+    /// Bounds lo, hi; the mean of the points (centres, vertices, cone
+    /// ends); the sum of the sphere radii; camera from, at; fov.
+    nums: Vec<f64>,
+}
+
+fn facts(s: &Scene) -> Facts {
+    let (lo, hi) = bounds(s);
+    let mut sum = DVec3::ZERO;
+    let mut n = 0.0;
+    let mut radii = 0.0;
+    let mut add = |p: DVec3| {
+        sum += p;
+        n += 1.0;
+    };
+    for o in &s.objects {
+        match &o.shape {
+            Shape::Sphere { center, radius } => {
+                add(*center);
+                radii += radius;
+            }
+            Shape::Polygon { vertices } => vertices.iter().for_each(|v| add(*v)),
+            Shape::Triangle { vertices, .. } => vertices.iter().for_each(|v| add(*v)),
+            Shape::Cone { base, apex, .. } => {
+                add(*base);
+                add(*apex);
+            }
+            other => panic!("an SPD scene has no {other:?}"),
+        }
+    }
+    let mean = sum / n;
+    let c = &s.camera;
+    let mut nums = Vec::new();
+    for v in [lo, hi, mean] {
+        nums.extend(v.to_array());
+    }
+    nums.push(radii);
+    nums.extend(c.from.to_array());
+    nums.extend(c.at.to_array());
+    nums.push(c.fov);
+    Facts {
+        kinds: count_kinds(s).into_iter().collect(),
+        lights: s.lights.len(),
+        nums,
+    }
+}
+
+/// Where `a` differs from the record `b` beyond NFF's six digits.
+fn facts_difference(a: &Facts, b: &Facts) -> Option<String> {
+    let scale = b.nums[..6].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let near = |x: f64, y: f64| (x - y).abs() <= 1e-5 * x.abs().max(y.abs()) + 1e-6 * scale;
+    let ok = a.kinds == b.kinds
+        && a.lights == b.lights
+        && a.nums.len() == b.nums.len()
+        && a.nums.iter().zip(&b.nums).all(|(x, y)| near(*x, *y));
+    (!ok).then(|| {
+        format!(
+            "{:?} {} lights {:?}\n  vs {:?} {} lights {:?}",
+            a.kinds, a.lights, a.nums, b.kinds, b.lights, b.nums
+        )
+    })
+}
+
+type Record = (
+    SpdScene,
+    &'static [(&'static str, u64)],
+    usize,
+    &'static [f64],
+);
+
+/// `facts` of the SPD's files at default size (kinds, lights, then the
+/// numbers of `Facts::nums`).
+const RECORDED: [Record; 7] = [
+    (
+        SpdScene::Balls,
+        &[("polygon", 1), ("sphere", 7381)],
+        3,
+        &[
+            -12.0,
+            -12.0,
+            -0.5,
+            12.0,
+            12.0,
+            0.8305668399999999,
+            1.630602209076145e-9,
+            4.067974709393187e-9,
+            0.19907423881110373,
+            60.49999633999474,
+            2.1,
+            1.3,
+            1.7,
+            0.0,
+            0.0,
+            0.0,
+            45.0,
+        ],
+    ),
+    (
+        SpdScene::Gears,
+        &[("polygon", 9345)],
+        5,
+        &[
+            -2.0,
+            -2.0,
+            0.0,
+            2.0,
+            2.0,
+            1.0,
+            -1.6109275858213845e-17,
+            -1.1302592376192958e-16,
+            0.5749584086803707,
+            0.0,
+            -1.1,
+            -2.1,
+            2.6,
+            0.0,
+            0.0,
+            0.0,
+            45.0,
+        ],
+    ),
+    (
+        SpdScene::Mount,
+        &[("polygon", 8192), ("sphere", 4)],
+        1,
+        &[
+            -1.15961,
+            -1.0,
+            -0.702953,
+            1.0,
+            1.15961,
+            1.37821,
+            -0.00013018714401952068,
+            0.00013018714401952068,
+            0.19889075087357636,
+            0.68,
+            -1.6,
+            1.6,
+            1.7,
+            0.0,
+            0.0,
+            0.0,
+            45.0,
+        ],
+    ),
+    (
+        SpdScene::Rings,
+        &[("cone", 4200), ("polygon", 1), ("sphere", 4200)],
+        3,
+        &[
+            -10.8389,
+            1.65358,
+            -9.33895,
+            8.83895,
+            20.905,
+            10.3389,
+            -0.0003173516344010531,
+            14.63550072437356,
+            0.00015867185020621214,
+            311.3039999999789,
+            -1.0,
+            -2.61313,
+            0.5,
+            -1.0,
+            -1.61313,
+            0.5,
+            45.0,
+        ],
+    ),
+    (
+        SpdScene::Teapot,
+        &[("polygon", 36), ("smooth triangle", 2256)],
+        2,
+        &[
+            -4.0,
+            -4.0,
+            0.0,
+            4.0,
+            4.0,
+            3.15,
+            0.03719077256944434,
+            -1.758816857587596e-17,
+            1.692389192361124,
+            0.0,
+            4.86,
+            7.2,
+            5.4,
+            0.0,
+            0.0,
+            0.0,
+            45.0,
+        ],
+    ),
+    (
+        SpdScene::Tetra,
+        &[("polygon", 4096)],
+        1,
+        &[
+            -1.0, -1.0, -1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.02285, -3.17715, -2.17451,
+            -0.004103, -0.004103, 0.216539, 45.0,
+        ],
+    ),
+    (
+        SpdScene::Tree,
+        &[("cone", 4095), ("polygon", 1), ("sphere", 4095)],
+        7,
+        &[
+            -50.0,
+            -50.0,
+            -0.15,
+            50.0,
+            50.0,
+            3.13748741,
+            0.18969300637086248,
+            0.2018556041410043,
+            2.4525154300593845,
+            9.611477120000234,
+            4.5,
+            0.4,
+            2.0,
+            0.0,
+            0.0,
+            1.5,
+            45.0,
+        ],
+    ),
+];
+
+fn recorded(s: SpdScene) -> Facts {
+    let r = RECORDED.iter().find(|r| r.0 == s).unwrap();
+    Facts {
+        kinds: r.1.to_vec(),
+        lights: r.2,
+        nums: r.3.to_vec(),
+    }
+}
+
+/// Every clone: each generator at default size has the kinds and counts,
+/// lights, bounds, mean point, sphere radii and camera of the
+/// SPD's own file, as recorded in `RECORDED`.
+#[test]
+fn default_sizes_match_the_recorded_originals() {
+    let mut failures = Vec::new();
+    for s in SpdScene::ALL {
+        let ours = facts(&spd::generate(s, None).unwrap());
+        if let Some(d) = facts_difference(&ours, &recorded(s)) {
+            failures.push(format!("{s}: {d}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
