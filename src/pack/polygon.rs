@@ -183,8 +183,8 @@ pub fn cells(
     // Cell (b, c) covers u in u_lo + [c, c + 1] / inv_w, v in v_min + [b,
     // b + 1] / inv_h; each grown by a quarter cell.
     let (w, h) = (1.0 / inv_w as f64, 1.0 / inv_h as f64);
+    // Cells near an edge first; the others get their side below.
     let mut codes = vec![CELL_OUT; k * m];
-    let mut near = vec![false; k * m];
     // Edge j runs from vertex j − 1 to vertex j (a: the previous vertex).
     let mut a = q[n - 1];
     for &b in q {
@@ -197,7 +197,7 @@ pub fn cells(
         let b1 = (((vh - v_min as f64) / h + 0.25).floor().max(0.0) as usize).min(k - 1);
         for bb in b0..=b1 {
             for cc in c0..=c1 {
-                near[bb * m + cc] = true;
+                codes[bb * m + cc] = CELL_EDGE;
             }
         }
         a = b;
@@ -225,13 +225,9 @@ pub fn cells(
             while left < xs.len() && xs[left] <= px {
                 left += 1;
             }
-            codes[i] = if near[i] {
-                CELL_EDGE
-            } else if (xs.len() - left) % 2 == 1 {
-                CELL_IN
-            } else {
-                CELL_OUT
-            };
+            if codes[i] != CELL_EDGE && (xs.len() - left) % 2 == 1 {
+                codes[i] = CELL_IN;
+            }
         }
     }
     Some((u_lo, inv_w, m, codes))
