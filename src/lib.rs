@@ -8,6 +8,7 @@
 
 pub mod bench;
 pub mod budget;
+pub mod chart;
 pub mod cli;
 pub mod constants;
 pub mod cpu;
@@ -22,9 +23,10 @@ pub mod output;
 pub mod pack;
 pub mod plot;
 pub mod povray;
+pub mod reference;
 pub mod run;
 pub mod scene;
 pub mod sys;
 pub mod trace;
 
-pub use run::{render, Backend, RenderOptions, Rendered};
+pub use run::{render, Backend, Precision, RenderOptions, Rendered};

@@ -1,5 +1,7 @@
-//! Image metrics: max and mean absolute error, RMSE, PSNR, mean FLIP, and
-//! the CPU-mirror-versus-GPU comparison (`compare`) with its tolerances.
+//! Image metrics: max and mean absolute error, RMSE, PSNR, mean FLIP, the
+//! error of a render against a reference (`Accuracy`: `whitted chart`,
+//! `whitted stability`), and the CPU-mirror-versus-GPU comparison
+//! (`compare`) with its tolerances.
 //! The tolerances live here, in one place, for `whitted validate` and the
 //! tests; docs/gpu.md gives the reason for each.
 
@@ -51,6 +53,96 @@ pub fn flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> (Vec<f32>
     let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
     let mean = nv_flip::FlipPool::from_image(&map).mean() as f64;
     (map.to_vec(), mean)
+}
+
+/// One display step: a pixel is "off" when a channel differs from the
+/// reference by more than this (linear radiance, white = 1).
+pub const STEP: f64 = 1.0 / 255.0;
+
+/// The error of a render against a reference of the same size (linear
+/// radiance throughout, except FLIP, which sees the 8-bit sRGB images).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Accuracy {
+    /// Root mean square difference over all channels.
+    pub rmse: f64,
+    /// 10·log10(1/MSE) for a peak of 1; +∞ for identical images.
+    pub psnr: f64,
+    /// Mean FLIP of the 8-bit sRGB images (0: identical, 1: opposite).
+    pub mean_flip: f64,
+    /// The largest channel difference and its pixel (x right, y down from
+    /// the top-left); a NaN pixel is the worst there is (+∞).
+    pub worst: f64,
+    pub worst_x: u32,
+    pub worst_y: u32,
+    /// Fraction of pixels with a channel more than [`STEP`] off.
+    pub fraction_over_step: f64,
+    /// Pixels with a NaN or infinite channel in the test image.
+    pub non_finite: u64,
+}
+
+impl Accuracy {
+    /// `test` against `reference`; panics when their sizes differ (a
+    /// caller's bug: both come from the same settings).
+    pub fn of(reference: &Frame, test: &Frame) -> Accuracy {
+        assert_eq!(
+            (reference.width, reference.height),
+            (test.width, test.height),
+            "frames of different sizes"
+        );
+        let (a, b) = (&reference.pixels, &test.pixels);
+        let mut acc = Accuracy::default();
+        let mut over = 0u64;
+        let mut worst_i = 0usize;
+        for (i, (p, q)) in a.iter().zip(b).enumerate() {
+            let mut e = 0.0f64;
+            for c in 0..3 {
+                let d = (p[c] as f64 - q[c] as f64).abs();
+                // NaN compares false: make it the worst.
+                e = if d.is_nan() { f64::INFINITY } else { e.max(d) };
+            }
+            if !q.iter().all(|v| v.is_finite()) {
+                acc.non_finite += 1;
+                e = f64::INFINITY;
+            }
+            if e > STEP {
+                over += 1;
+            }
+            if e > acc.worst {
+                acc.worst = e;
+                worst_i = i;
+            }
+        }
+        let w = reference.width.max(1) as usize;
+        acc.worst_x = (worst_i % w) as u32;
+        acc.worst_y = (worst_i / w) as u32;
+        acc.fraction_over_step = over as f64 / a.len().max(1) as f64;
+        acc.rmse = rmse(a, b);
+        acc.psnr = psnr(a, b);
+        let ra = output::to_rgb8(reference, Encoding::Srgb);
+        let rb = output::to_rgb8(test, Encoding::Srgb);
+        acc.mean_flip = flip(ra.as_raw(), rb.as_raw(), reference.width, reference.height).1;
+        acc
+    }
+
+    /// One line for a terminal.
+    pub fn summary(&self) -> String {
+        format!(
+            "RMSE {:.3e}, PSNR {:.2} dB, mean FLIP {:.4}, worst {:.4} at ({}, {}), \
+             {:.3}% of pixels over 1/255{}",
+            self.rmse,
+            self.psnr,
+            self.mean_flip,
+            self.worst,
+            self.worst_x,
+            self.worst_y,
+            self.fraction_over_step * 100.0,
+            if self.non_finite > 0 {
+                format!(", {} non-finite pixels", self.non_finite)
+            } else {
+                String::new()
+            }
+        )
+    }
 }
 
 /// Image and ray-count tolerances of the CPU-mirror-versus-GPU check.
@@ -271,6 +363,33 @@ mod tests {
         let b: Vec<u8> = a.iter().map(|&v| 255 - v).collect();
         let (_, mean) = flip(&a, &b, w, h);
         assert!(mean > 0.1, "{mean}");
+    }
+
+    #[test]
+    fn accuracy_finds_the_worst_pixel_and_counts_steps() {
+        let (w, h) = (8u32, 4u32);
+        let a = frame(vec![[0.25f32; 3]; 32], w, h);
+        let same = Accuracy::of(&a, &a);
+        assert_eq!(same.rmse, 0.0);
+        assert_eq!(same.psnr, f64::INFINITY);
+        assert_eq!(
+            (same.worst, same.fraction_over_step, same.non_finite),
+            (0.0, 0.0, 0)
+        );
+        let mut b = a.clone();
+        b.pixels[3 * 8 + 5][1] = 0.75; // (5, 3): 0.5 off
+        b.pixels[1][0] = 0.25 + 0.5 / 255.0; // under one step
+        b.pixels[2][2] = 0.25 + 2.0 / 255.0; // over one step
+        let e = Accuracy::of(&a, &b);
+        assert!((e.worst - 0.5).abs() < 1e-7, "{e:?}");
+        assert_eq!((e.worst_x, e.worst_y), (5, 3));
+        assert_eq!(e.fraction_over_step, 2.0 / 32.0);
+        assert!(e.mean_flip > 0.0 && e.psnr.is_finite());
+        b.pixels[9][0] = f32::NAN;
+        let e = Accuracy::of(&a, &b);
+        assert_eq!((e.worst, e.worst_x, e.worst_y), (f64::INFINITY, 1, 1));
+        assert_eq!(e.non_finite, 1);
+        assert!(e.summary().contains("1 non-finite"));
     }
 
     #[test]

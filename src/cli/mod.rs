@@ -6,10 +6,12 @@
 //! Exit codes: see `crate::error`.
 
 pub mod bench;
+pub mod chart;
 pub mod devices;
 pub mod export;
 pub mod generate;
 pub mod options;
+pub mod reference;
 pub mod render;
 pub mod validate;
 
@@ -81,6 +83,21 @@ pub enum Command {
     ///
     /// Example: whitted bench --vs povray --runs 7 --csv bench.csv --plot bench.svg
     Bench(bench::BenchArgs),
+    /// Render a scene's reference image (or fetch it from the cache): the
+    /// CPU tracer in f64, 64 stratified samples per pixel, depth 16, no
+    /// adaptive cut-off. Cached under a hash of the scene's content and
+    /// the settings (docs/accuracy.md).
+    ///
+    /// Example: whitted reference scenes/showcase.toml --width 200 --height 150 -o ref.exr
+    Reference(reference::ReferenceArgs),
+    /// Chart speed against accuracy: sweep max depth, min weight, samples
+    /// per pixel, sampling, precision, backend, grid density and
+    /// acceleration structure one at a time from the defaults; each point
+    /// the median time of several runs after a warm-up and its error
+    /// against the reference; the Pareto front ringed (docs/accuracy.md).
+    ///
+    /// Example: whitted chart scenes/showcase.toml --width 200 --height 150 -o chart.svg --csv chart.csv
+    Chart(chart::ChartArgs),
 }
 
 /// Global output settings every command sees.
@@ -107,6 +124,8 @@ pub fn run(cli: Cli) -> u8 {
         Command::Generate(a) => generate::run(a, ui),
         Command::Export(a) => export::run(a, ui),
         Command::Bench(a) => bench::run(a, ui),
+        Command::Reference(a) => reference::run(a, ui),
+        Command::Chart(a) => chart::run(a, ui),
     };
     match r {
         Ok(code) => code,

@@ -31,6 +31,11 @@ pub struct RenderArgs {
     /// the CPU mirror.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub backend: Backend,
+    /// The CPU tracer's float type: f32 is the GPU's twin (bit for bit on
+    /// lavapipe), f64 the reference's arithmetic (CPU only; with --backend
+    /// auto it renders on the CPU). The scene's packed data stay f32.
+    #[arg(long, value_enum, default_value_t = run::Precision::F32)]
+    pub precision: run::Precision,
     #[command(flatten)]
     pub gpu: GpuArgs,
     /// PNG encoding: sRGB, or the clamped linear values round(255·v).
@@ -88,6 +93,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         gpu: a.gpu.options(),
         threads: a.opts.threads,
         counting: a.opts.counting(),
+        precision: a.precision,
     };
     let t_pack = Instant::now();
     let bar = Bar::new(ui, "packing");
@@ -110,6 +116,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     if let Some(path) = &a.stats {
         let json = serde_json::json!({
             "backend": r.used,
+            "precision": if r.used == run::Used::Cpu { Some(a.precision) } else { None },
             "device": r.device,
             "width": frame.width,
             "height": frame.height,

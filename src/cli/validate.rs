@@ -63,7 +63,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
     let gpu_frame = g
         .render(&packed, &gopts, &|_, _| {})
         .map_err(run::gpu_error)?;
-    let cpu_frame = run::render_cpu(&packed, a.opts.threads, &|_, _| {})?;
+    let cpu_frame = run::render_cpu(&packed, a.opts.threads, run::Precision::F32, &|_, _| {})?;
     let tol = Tolerance::default();
     let c = metrics::compare(&cpu_frame, &gpu_frame, &tol);
     if let Some(path) = &a.diff {
