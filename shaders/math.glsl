@@ -36,6 +36,74 @@ vec3 normalize3(vec3 v) {
     return r;
 }
 
+// exp, log and pow from +, −, ×, ÷, floor and bit moves alone: twins of
+// exp_f32, log_f32 and pow_f32 in src/trace/math.rs (Cephes' expf and
+// logf), bit for bit where the device rounds IEEE and does not fuse
+// (lavapipe). The built-in exp and pow are the driver's, a few ULP from
+// any libm.
+const float LOG2E = 1.442695;
+const float LN2_HI = 0.693359375;
+const float LN2_LO = -2.1219444e-4;
+
+float exp_twin(float z) {
+    if (isnan(z)) {
+        return z;
+    }
+    if (z <= -87.0) {
+        return 0.0;
+    }
+    if (z >= 88.0) {
+        return INF;
+    }
+    precise float k = floor(z * LOG2E + 0.5);
+    precise float x = z - k * LN2_HI - k * LN2_LO;
+    precise float z2 = x * x;
+    precise float p = ((((0.00019875691 * x + 0.0013981999) * x + 0.008333452) * x
+        + 0.041665796) * x + 0.16666666) * x + 0.5;
+    precise float y = p * z2 + x + 1.0;
+    precise float r = y * uintBitsToFloat(uint(int(k) + 127) << 23);
+    return r;
+}
+
+float log_twin(float x) {
+    if (isnan(x) || x < 0.0) {
+        return uintBitsToFloat(0x7FC00000u);
+    }
+    if (x == 0.0) {
+        return NEG_INF;
+    }
+    if (isinf(x)) {
+        return x;
+    }
+    x = max(x, uintBitsToFloat(0x00800000u));
+    uint bits = floatBitsToUint(x);
+    int e = int((bits >> 23) & 0xFFu) - 126;
+    precise float m = uintBitsToFloat((bits & 0x007FFFFFu) | 0x3F000000u);
+    if (m < 0.70710677) {
+        e -= 1;
+        m = m + m - 1.0;
+    } else {
+        m = m - 1.0;
+    }
+    precise float z = m * m;
+    precise float p = (((((((0.070376836 * m - 0.1151461) * m + 0.116769984) * m
+        - 0.12420141) * m + 0.14249323) * m - 0.16668057) * m
+        + 0.20000714) * m - 0.24999994) * m + 0.3333333;
+    precise float fe = float(e);
+    precise float y = p * m * z;
+    y = y + LN2_LO * fe;
+    y = y + -0.5 * z;
+    precise float r = m + y;
+    r = r + LN2_HI * fe;
+    return r;
+}
+
+// x^y for x > 0 (a cosine and a shininess).
+float pow_twin(float x, float y) {
+    precise float a = y * log_twin(x);
+    return exp_twin(a);
+}
+
 // F::max of the three (Rust: x.max(y).max(z)).
 float max_elem(vec3 v) { return max(max(v.x, v.y), v.z); }
 

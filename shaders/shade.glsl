@@ -88,7 +88,7 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
                 precise vec3 r = n * (2.0 * ndotl) - l;
                 precise float vr = dot3(v, r);
                 if (vr > 0.0) {
-                    precise float spec = ksr * pow(vr, mat.ks.y);
+                    precise float spec = ksr * pow_twin(vr, mat.ks.y);
                     term = term + vec3(spec);
                 }
             }
@@ -102,7 +102,7 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
             if (refract_dir(-l, -n, eta, t)) {
                 precise float vt = dot3(v, t);
                 if (vt > 0.0) {
-                    precise float spec = kst * pow(vt, mat.ks.w);
+                    precise float spec = kst * pow_twin(vt, mat.ks.w);
                     term = term + vec3(spec);
                 }
             }

@@ -25,6 +25,15 @@ struct Entry {
     uint depth;
 };
 
+// exp(−σ·ε/|cos|): the absorption over the stretch a ray spawned into a
+// medium skips (twin of offset_absorption in src/trace/tree.rs).
+vec3 offset_absorption(vec3 sigma, float eps, float cosn) {
+    precise float c = max(abs(cosn), 1e-3);
+    precise float delta = eps / c;
+    precise vec3 x = -sigma * delta;
+    return vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
+}
+
 // Intensity arriving along an eye ray.
 vec3 trace_ray(Ray ray) {
     uint max_depth = g.trace.x;
@@ -56,7 +65,7 @@ vec3 trace_ray(Ray ray) {
         precise vec3 w = e.w;
         if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
             precise vec3 x = -e.medium * h.t;
-            w = w * exp(x);
+            w = w * vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
         }
         Prim prim = prims[pi];
         Material mat = materials[prim_material(prim)];
@@ -87,10 +96,13 @@ vec3 trace_ray(Ray ray) {
                 refl = refl + kt;
             } else {
                 precise vec3 wt = w * kt;
+                vec3 medium = front ? mat.absorb.xyz : vec3(0.0);
+                if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(medium) > 0.0) {
+                    wt = wt * offset_absorption(medium, eps, dot3(ngf, t));
+                }
                 if (max_elem(wt) >= min_weight) {
                     stats.refract += 1u;
                     precise vec3 o = p - ngf * eps;
-                    vec3 medium = front ? mat.absorb.xyz : vec3(0.0);
                     stack[sp] = Entry(o, t, wt, medium, e.depth + 1u);
                     sp += 1u;
                 }
@@ -101,10 +113,14 @@ vec3 trace_ray(Ray ray) {
         // the guard changes nothing.
         if (HAS_REFLECT && (max_elem(refl) > 0.0 || (spd && max_elem(kt) > 0.0))) {
             precise vec3 wr = w * refl;
+            vec3 dr = reflect_dir(e.d, n);
+            if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
+                wr = wr * offset_absorption(e.medium, eps, dot3(ngf, dr));
+            }
             if (max_elem(wr) >= min_weight) {
                 stats.reflect += 1u;
                 precise vec3 o = p + ngf * eps;
-                stack[sp] = Entry(o, reflect_dir(e.d, n), wr, e.medium, e.depth + 1u);
+                stack[sp] = Entry(o, dr, wr, e.medium, e.depth + 1u);
                 sp += 1u;
             }
         }

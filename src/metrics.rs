@@ -172,6 +172,33 @@ impl Default for Tolerance {
     }
 }
 
+impl Tolerance {
+    /// No difference at all: every pixel bit for bit and every ray count
+    /// equal.
+    pub fn exact() -> Tolerance {
+        Tolerance {
+            pixel: 0.0,
+            fraction_over: 0.0,
+            mean_flip: 0.0,
+            rays_relative: 0.0,
+            rays_absolute: 0,
+        }
+    }
+
+    /// The tolerance for a device of kind `kind` running the exact shader
+    /// (docs/gpu.md, "Tolerances"): on a CPU device (lavapipe) none, since
+    /// it never fuses multiply-add, keeps the `precise` order and shares
+    /// the CPU's libm-grade pow, exp and sqrt; on a real GPU the default,
+    /// since GLSL lets division, sqrt, pow and exp differ by a few ULP.
+    pub fn for_device(kind: crate::gpu::DeviceKind) -> Tolerance {
+        if kind == crate::gpu::DeviceKind::Cpu {
+            Tolerance::exact()
+        } else {
+            Tolerance::default()
+        }
+    }
+}
+
 /// One ray kind's counts on both sides.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct RayDiff {

@@ -444,7 +444,14 @@ fn readme_lists_every_option_of_every_command() {
     let section = &readme[start..];
     let skip = ["--help", "--version", "--verbose", "--quiet"];
     for cmd in [
-        "render", "validate", "devices", "generate", "export", "bench",
+        "render",
+        "validate",
+        "devices",
+        "generate",
+        "export",
+        "bench",
+        "reference",
+        "chart",
     ] {
         let a = whitted().args([cmd, "--help"]).assert().success();
         let help = String::from_utf8_lossy(&a.get_output().stdout).to_string();

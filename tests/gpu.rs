@@ -248,10 +248,12 @@ fn render_both(p: &Packed, opts: &GpuOptions) -> Option<(Frame, Frame)> {
     Some((cf, gf))
 }
 
-/// Compares within `Tolerance::default()` (docs/gpu.md); on failure writes
-/// the difference image and names it.
+/// Compares within the device's tolerance (`Tolerance::for_device`:
+/// bit for bit on lavapipe, docs/gpu.md); on failure writes the difference
+/// image and names it.
 fn assert_close(name: &str, cpu: &Frame, gpu: &Frame) {
-    let c = metrics::compare(cpu, gpu, &Tolerance::default());
+    let kind = common::gpu().expect("a GPU frame has a device").info().kind;
+    let c = metrics::compare(cpu, gpu, &Tolerance::for_device(kind));
     println!(
         "{name}: max abs {:.2e}, mean abs {:.2e}, PSNR {:.1} dB, FLIP {:.5}, {} pixels over; rays {:?}",
         c.max_abs, c.mean_abs, c.psnr, c.mean_flip, c.pixels_over, gpu.stats
@@ -280,8 +282,8 @@ fn scene_files() -> Vec<PathBuf> {
 }
 
 /// Every bundled scene, with each structure: the GPU's image is the
-/// mirror's within `Tolerance::default()` (pow and exp are the driver's:
-/// docs/gpu.md), and on a CPU device (lavapipe) the ray counts are equal.
+/// mirror's within the device's tolerance (bit for bit on lavapipe:
+/// docs/gpu.md), and on a CPU device the ray counts are equal.
 #[test]
 fn every_scene_matches_the_cpu_mirror() {
     for path in scene_files() {

@@ -64,7 +64,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
         .render(&packed, &gopts, &|_, _| {})
         .map_err(run::gpu_error)?;
     let cpu_frame = run::render_cpu(&packed, a.opts.threads, run::Precision::F32, &|_, _| {})?;
-    let tol = Tolerance::default();
+    let tol = Tolerance::for_device(g.info().kind);
     let c = metrics::compare(&cpu_frame, &gpu_frame, &tol);
     if let Some(path) = &a.diff {
         let img = c.diff_image();

@@ -15,6 +15,12 @@ pub trait Real: Float + Debug + Default + Send + Sync + 'static {
     /// Truncation towards zero (saturating): the GLSL `int(x)` on the
     /// values the tracer converts.
     fn trunc_i32(self) -> i32;
+    /// e^self: in f32 the twin [`exp_f32`] (bit for bit with the shader's
+    /// `exp_twin`), in f64 the library's.
+    fn exp_t(self) -> Self;
+    /// self^y for self > 0: in f32 the twin [`pow_f32`], in f64 the
+    /// library's.
+    fn pow_t(self, y: Self) -> Self;
 }
 
 impl Real for f32 {
@@ -29,6 +35,14 @@ impl Real for f32 {
     #[inline(always)]
     fn trunc_i32(self) -> i32 {
         self as i32
+    }
+    #[inline(always)]
+    fn exp_t(self) -> Self {
+        exp_f32(self)
+    }
+    #[inline(always)]
+    fn pow_t(self, y: Self) -> Self {
+        pow_f32(self, y)
     }
 }
 
@@ -45,6 +59,105 @@ impl Real for f64 {
     fn trunc_i32(self) -> i32 {
         self as i32
     }
+    #[inline(always)]
+    fn exp_t(self) -> Self {
+        self.exp()
+    }
+    #[inline(always)]
+    fn pow_t(self, y: Self) -> Self {
+        self.powf(y)
+    }
+}
+
+// exp and log in f32 from +, −, ×, ÷, floor and bit moves alone (Cephes'
+// expf and logf: Moshier's minimax polynomials), so that the CPU and the
+// shader (math.glsl: exp_twin, log_twin, pow_twin) agree bit for bit on a
+// device that rounds IEEE and does not fuse, as lavapipe does. The
+// driver's exp and pow differ from any libm by a few ULP (docs/gpu.md).
+
+const LOG2E: f32 = std::f32::consts::LOG2_E;
+/// ln 2 = LN2_HI + LN2_LO, LN2_HI with 9 significant bits so that k·LN2_HI
+/// is exact for |k| < 2^15.
+const LN2_HI: f32 = 0.693_359_4;
+const LN2_LO: f32 = -2.121_944_4e-4;
+
+/// e^z, relative error under 2e-7 on (−87, 88); 0 below (no subnormals:
+/// GPUs may flush them), +∞ above, NaN for NaN.
+#[inline(always)]
+pub fn exp_f32(z: f32) -> f32 {
+    if z.is_nan() {
+        return z;
+    }
+    if z <= -87.0 {
+        return 0.0;
+    }
+    if z >= 88.0 {
+        return f32::INFINITY;
+    }
+    let k = (z * LOG2E + 0.5).floor();
+    let x = z - k * LN2_HI - k * LN2_LO;
+    let z2 = x * x;
+    let p = ((((0.000_198_756_91 * x + 0.001_398_199_9) * x + 0.008_333_452) * x + 0.041_665_796)
+        * x
+        + 0.166_666_66)
+        * x
+        + 0.5;
+    let y = p * z2 + x + 1.0;
+    // 2^k, k in [−126, 127].
+    y * f32::from_bits(((k as i32 + 127) as u32) << 23)
+}
+
+/// ln x for x > 0, relative error under 2e-7; subnormals are taken as the
+/// smallest normal (their logarithm then errs by less than 1e-6 relative,
+/// and pow of them is 0 or 1 in f32 anyway). ln 0 = −∞, ln of a negative
+/// number or NaN is NaN.
+#[inline(always)]
+pub fn log_f32(x: f32) -> f32 {
+    if x.is_nan() || x < 0.0 {
+        return f32::NAN;
+    }
+    if x == 0.0 {
+        return f32::NEG_INFINITY;
+    }
+    if x == f32::INFINITY {
+        return x;
+    }
+    let x = x.max(f32::MIN_POSITIVE);
+    let bits = x.to_bits();
+    // x = m · 2^e with m in [0.5, 1).
+    let mut e = ((bits >> 23) & 0xff) as i32 - 126;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f00_0000);
+    if m < std::f32::consts::FRAC_1_SQRT_2 {
+        e -= 1;
+        m = m + m - 1.0;
+    } else {
+        m -= 1.0;
+    }
+    let z = m * m;
+    let p = (((((((0.070_376_836 * m - 0.115_146_1) * m + 0.116_769_984) * m - 0.124_201_41)
+        * m
+        + 0.142_493_23)
+        * m
+        - 0.166_680_57)
+        * m
+        + 0.200_007_14)
+        * m
+        - 0.249_999_94)
+        * m
+        + 0.333_333_3;
+    let fe = e as f32;
+    let mut y = p * m * z;
+    y += LN2_LO * fe;
+    y += -0.5 * z;
+    let r = m + y;
+    r + LN2_HI * fe
+}
+
+/// x^y for x > 0 as e^(y·ln x): what the shading's highlights need
+/// (x a cosine in (0, 1], y a shininess ≥ 0).
+#[inline(always)]
+pub fn pow_f32(x: f32, y: f32) -> f32 {
+    exp_f32(y * log_f32(x))
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -169,4 +282,70 @@ impl<F: Real> Div<F> for V3<F> {
 pub struct Ray<F> {
     pub o: V3<F>,
     pub d: V3<F>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rel(a: f32, b: f64) -> f64 {
+        ((a as f64 - b) / b).abs()
+    }
+
+    #[test]
+    fn exp_twin_is_within_two_ulp_of_the_true_value() {
+        let mut worst = 0.0f64;
+        let n = 200_000;
+        for i in 0..=n {
+            let z = -86.9 + 174.8 * i as f64 / n as f64;
+            let z = z as f32;
+            worst = worst.max(rel(exp_f32(z), (z as f64).exp()));
+        }
+        assert!(worst < 2.5e-7, "exp: worst relative error {worst:e}");
+        assert_eq!(exp_f32(0.0), 1.0);
+        assert_eq!(exp_f32(-90.0), 0.0);
+        assert_eq!(exp_f32(f32::NEG_INFINITY), 0.0);
+        assert_eq!(exp_f32(100.0), f32::INFINITY);
+        assert!(exp_f32(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn log_and_pow_twins_are_accurate_where_shading_uses_them() {
+        let mut worst = 0.0f64;
+        for i in 1..=100_000u32 {
+            let x = i as f32 / 100_000.0 * 4.0;
+            let t = (x as f64).ln();
+            if t.abs() > 1e-3 {
+                worst = worst.max(rel(log_f32(x), t));
+            } else {
+                // Near 1 the logarithm is small: absolute error.
+                assert!((log_f32(x) as f64 - t).abs() < 1e-9, "{x}");
+            }
+        }
+        assert!(worst < 2.5e-7, "log: worst relative error {worst:e}");
+        assert_eq!(log_f32(1.0), 0.0);
+        assert_eq!(log_f32(0.0), f32::NEG_INFINITY);
+        assert!(log_f32(-1.0).is_nan());
+        assert!((log_f32(1e-40) - (f32::MIN_POSITIVE as f64).ln() as f32).abs() < 1e-5);
+        // Highlights: cosines in (0, 1], exponents up to 10 000. The error
+        // grows with |y·ln x| (as for any pow); visible values (> 1e-6)
+        // stay within 3e-6 relative.
+        let mut worst = 0.0f64;
+        for i in 1..=2000u32 {
+            let x = i as f32 / 2000.0;
+            for y in [0.0f32, 1.0, 2.5, 10.0, 40.0, 200.0, 1000.0, 10_000.0] {
+                let t = (x as f64).powf(y as f64);
+                let p = pow_f32(x, y);
+                if t > 1e-6 {
+                    worst = worst.max(rel(p, t));
+                } else {
+                    assert!(p < 2e-6, "{x}^{y} = {p}");
+                }
+            }
+        }
+        assert!(worst < 3e-6, "pow: worst relative error {worst:e}");
+        assert_eq!(pow_f32(1.0, 200.0), 1.0);
+        assert_eq!(pow_f32(0.5, 0.0), 1.0);
+        assert_eq!(pow_f32(0.5, 1.0), 0.5);
+    }
 }

@@ -90,7 +90,7 @@ pub fn shade<F: Real>(
                 let r = n * (F::of(2.0) * ndotl) - l;
                 let vr = v.dot(r);
                 if vr > F::zero() {
-                    term += V3::splat(ksr * vr.powf(F::of(mat.ks[1])));
+                    term += V3::splat(ksr * vr.pow_t(F::of(mat.ks[1])));
                 }
             }
         } else {
@@ -101,7 +101,7 @@ pub fn shade<F: Real>(
             if let Some(t) = refract_dir(-l, -n, eta) {
                 let vt = v.dot(t);
                 if vt > F::zero() {
-                    term += V3::splat(kst * vt.powf(F::of(mat.ks[3])));
+                    term += V3::splat(kst * vt.pow_t(F::of(mat.ks[3])));
                 }
             }
         }
