@@ -217,6 +217,7 @@ impl Plan {
             grid,
             accel: c.accel,
             budget: self.budget,
+            offset: None,
         }
     }
 }

@@ -370,6 +370,7 @@ fn small_settings() -> Settings {
         grid: None,
         accel: Accel::Auto,
         budget: Budget::bytes(MEMORY_LIMIT),
+        offset: None,
     }
 }
 
@@ -621,6 +622,7 @@ impl RenderSpec {
                 (None, false) => Accel::Auto,
             },
             budget: Budget::bytes(MEMORY_LIMIT),
+            offset: None,
         }
     }
 }

@@ -26,6 +26,7 @@ pub mod povray;
 pub mod reference;
 pub mod run;
 pub mod scene;
+pub mod stability;
 pub mod sys;
 pub mod trace;
 

@@ -65,6 +65,7 @@ impl RefSettings {
             grid: None,
             accel: Accel::Auto,
             budget,
+            offset: None,
         }
     }
 }

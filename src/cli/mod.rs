@@ -13,6 +13,7 @@ pub mod generate;
 pub mod options;
 pub mod reference;
 pub mod render;
+pub mod stability;
 pub mod validate;
 
 use crate::error::{exit_code, EXIT_INTERNAL, EXIT_INTERRUPTED};
@@ -98,6 +99,14 @@ pub enum Command {
     ///
     /// Example: whitted chart scenes/showcase.toml --width 200 --height 150 -o chart.svg --csv chart.csv
     Chart(chart::ChartArgs),
+    /// Measure where methods fail: the surface offset (acne against
+    /// leaks), grazing and tangent rays, the critical angle, cell
+    /// boundaries, watertightness, distance from the origin, scale, the
+    /// quadratic solver, and f32 against f64 and CPU against GPU per scene;
+    /// a Markdown report with tables and pictures (docs/stability.md).
+    ///
+    /// Example: whitted stability -o docs/stability.md --pictures docs/stability
+    Stability(stability::StabilityArgs),
 }
 
 /// Global output settings every command sees.
@@ -126,6 +135,7 @@ pub fn run(cli: Cli) -> u8 {
         Command::Bench(a) => bench::run(a, ui),
         Command::Reference(a) => reference::run(a, ui),
         Command::Chart(a) => chart::run(a, ui),
+        Command::Stability(a) => stability::run(a, ui),
     };
     match r {
         Ok(code) => code,

@@ -96,6 +96,7 @@ impl RenderOpts {
             grid: self.grid.or(base.grid),
             accel: self.accel.unwrap_or(base.accel),
             budget: self.memory_limit.unwrap_or(base.budget),
+            offset: None,
         }
     }
 

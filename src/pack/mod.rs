@@ -59,6 +59,9 @@ pub struct Settings {
     /// The memory the run may use (`--memory-limit`); packing refuses,
     /// before allocating, a run whose estimate is over it.
     pub budget: Budget,
+    /// The surface offset ε of secondary rays relative to the scene's
+    /// size; None: `EPS_OFFSET_REL` (`whitted stability` sweeps it).
+    pub offset: Option<f32>,
 }
 
 impl Default for Settings {
@@ -73,6 +76,7 @@ impl Default for Settings {
             grid: None,
             accel: Accel::Auto,
             budget: Budget::system(),
+            offset: None,
         }
     }
 }
@@ -166,6 +170,7 @@ impl Preset {
                 grid: None,
                 accel: Accel::Auto,
                 budget: Budget::system(),
+                offset: None,
             },
         }
     }
@@ -1014,7 +1019,7 @@ pub fn pack_with_progress(
         trace: [settings.max_depth.min(MAX_DEPTH_LIMIT), b.features, nx, ny],
         params: [
             settings.min_weight,
-            (scale * EPS_OFFSET_REL as f64) as f32,
+            (scale * settings.offset.unwrap_or(EPS_OFFSET_REL) as f64) as f32,
             0.0,
             0.0,
         ],
