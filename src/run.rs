@@ -34,7 +34,7 @@ pub enum Backend {
 
 /// The CPU tracer's number type (the GPU always runs f32). The packed
 /// scene stays f32 either way: f64 measures the error of the tracer's
-/// arithmetic, not of the scene's storage (docs/method.md, "Precision").
+/// arithmetic, not of the scene's storage (docs/accuracy.md, "Precision").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {

@@ -138,7 +138,14 @@ pub fn markdown(
     machine: &str,
     pictures: Option<&str>,
 ) -> String {
-    let mut s = String::new();
+    let mut s = String::from(
+        "# Stability: where methods fail\n\n\
+         Each failure mode on a scene built to provoke it, measured on the CPU (f32, the \
+         GPU's twin, against f64 through the same samples unless said otherwise) and on \
+         the GPU, and beside POV-Ray 3.7 where that says something. Every figure comes \
+         from one command, named in its section; this page is that command's output \
+         (`src/stability.rs`). Speed against accuracy is in [accuracy.md](accuracy.md).\n\n",
+    );
     let _ = writeln!(s, "Made by `{command}` on {machine}.\n");
     for r in reports {
         let _ = writeln!(s, "## {}\n", r.title);
@@ -1099,7 +1106,7 @@ pub fn distance(ctx: &Ctx) -> Result<Distance> {
             table: t,
             findings,
             remedy: "The packer re-expresses the scene around the camera in f64 before \
-                     rounding it to f32 (docs/method.md, \"Precision\"), so the f32 \
+                     rounding it to f32 (docs/method.md, \"Data flow\"), so the f32 \
                      numbers the tracers see do not depend on where the scene is, and ε \
                      is sized by the scene's extent from the camera, not by the distance \
                      from the origin.",
