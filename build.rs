@@ -1,5 +1,8 @@
 //! Generates `constants.glsl` from `src/constants.rs` (the one place the
-//! shared constants are written) and compiles `shaders/*.comp` to SPIR-V.
+//! shared constants are written) and compiles `shaders/*.comp` to SPIR-V;
+//! `render.comp` twice: `render.spv` (exact: `PRECISE` is `precise`) and
+//! `render_fast.spv` (`WHITTED_FAST_MATH` defined: `PRECISE` is empty;
+//! `shaders/precise.glsl`).
 
 include!("src/constants.rs");
 
@@ -129,11 +132,31 @@ fn tidy_log(log: &str, file: &str) -> String {
     out
 }
 
-/// Compiles one compute shader to SPIR-V 1.3 for Vulkan 1.1; panics (failing
-/// the build) with glslang's log on any error.
-fn compile(path: &Path, out: &Path) -> Vec<PathBuf> {
+/// `#define`s handed to glslang: (name, value).
+type Defines = &'static [(&'static str, Option<&'static str>)];
+
+/// The kernels built from one `.comp`: (suffix of the output's stem,
+/// `#define`s). Only `render.comp` has a fast variant; `probe.comp` tests
+/// the twins bit for bit and stays exact (it refuses WHITTED_FAST_MATH).
+fn variants(stem: &str) -> &'static [(&'static str, Defines)] {
+    match stem {
+        "render" => &[("", &[]), ("_fast", &[("WHITTED_FAST_MATH", Some("1"))])],
+        _ => &[("", &[])],
+    }
+}
+
+/// Compiles one compute shader with `defines` to SPIR-V 1.3 for Vulkan
+/// 1.1, written to `$OUT_DIR/<stem><suffix>.spv`; panics (failing the
+/// build) with glslang's log on any error.
+fn compile(
+    path: &Path,
+    out: &Path,
+    suffix: &str,
+    defines: &[(&str, Option<&str>)],
+) -> Vec<PathBuf> {
     use glslang::*;
     let file = format!("shaders/{}", path.file_name().unwrap().to_string_lossy());
+    let flags: String = defines.iter().map(|(d, _)| format!(" -D{d}")).collect();
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{file}: {e}"));
     let compiler = Compiler::acquire().expect("glslang: cannot initialize the compiler");
     let source = ShaderSource::from(text);
@@ -160,14 +183,14 @@ fn compile(path: &Path, out: &Path) -> Vec<PathBuf> {
             | glslang::error::GlslangError::LinkError(l) => tidy_log(&l.log, &file),
             e => format!("{e}"),
         };
-        panic!("\n{file}: GLSL {what} failed:\n{msg}");
+        panic!("\n{file}{flags}: GLSL {what} failed:\n{msg}");
     };
     let words = {
         let input = ShaderInput::new(
             &source,
             ShaderStage::Compute,
             &options,
-            None::<&[(&str, Option<&str>)]>,
+            Some(defines),
             Some(&mut includer),
         )
         .unwrap_or_else(|e| fail("setup", e));
@@ -182,7 +205,7 @@ fn compile(path: &Path, out: &Path) -> Vec<PathBuf> {
     };
     let stem = path.file_stem().unwrap().to_string_lossy();
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    std::fs::write(out.join(format!("{stem}.spv")), bytes).unwrap();
+    std::fs::write(out.join(format!("{stem}{suffix}.spv")), bytes).unwrap();
     includer.seen
 }
 
@@ -203,6 +226,9 @@ fn main() {
         .iter()
         .filter(|p| p.extension().is_some_and(|e| e == "comp"))
     {
-        compile(p, &out);
+        let stem = p.file_stem().unwrap().to_string_lossy();
+        for (suffix, defines) in variants(&stem) {
+            compile(p, &out, suffix, defines);
+        }
     }
 }

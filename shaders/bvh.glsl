@@ -10,6 +10,7 @@
 #ifndef WHITTED_BVH_GLSL
 #define WHITTED_BVH_GLSL
 
+#include "precise.glsl"
 #include "query.glsl"
 
 // Where the ray enters the child's box within the segment 0..tmax (0 from
@@ -27,8 +28,8 @@ bool bvh_entry(BvhChild c, Ray ray, RayPre pre, float tmax, out float t) {
         float inv = pre.inv_d[i];
         float near = inv >= 0.0 ? c.lo[i] : c.hi[i];
         float far = inv >= 0.0 ? c.hi[i] : c.lo[i];
-        precise float tn = (near - o) * inv;
-        precise float tf = (far - o) * inv;
+        PRECISE float tn = (near - o) * inv;
+        PRECISE float tf = (far - o) * inv;
         if (tn > t0) {
             t0 = tn;
         }

@@ -10,6 +10,7 @@
 #ifndef WHITTED_GRID_GLSL
 #define WHITTED_GRID_GLSL
 
+#include "precise.glsl"
 #include "query.glsl"
 
 // Traversal state: the current cell and where the ray leaves it on each
@@ -36,8 +37,8 @@ struct Dda {
 // from the cell index (no error accumulates along the ray).
 float dda_boundary(Dda dda, int axis) {
     int edge = dda.cell[axis] + (dda.step[axis] > 0 ? 1 : 0);
-    precise float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
-    precise float t = (plane - dda.o[axis]) * dda.inv[axis];
+    PRECISE float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
+    PRECISE float t = (plane - dda.o[axis]) * dda.inv[axis];
     return t;
 }
 
@@ -60,8 +61,8 @@ bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
             }
             continue;
         }
-        precise float ta = (lo - o[i]) * inv[i];
-        precise float tb = (hi - o[i]) * inv[i];
+        PRECISE float ta = (lo - o[i]) * inv[i];
+        PRECISE float tb = (hi - o[i]) * inv[i];
         t0 = max(t0, min(ta, tb));
         t1 = min(t1, max(ta, tb));
     }
@@ -79,8 +80,8 @@ bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
     dda.inv = inv;
     for (int i = 0; i < 3; i++) {
         int n = int(g.grid_dims[i]);
-        precise float p = o[i] + d[i] * t0;
-        precise float c = (p - g.grid_min[i]) / g.grid_cell[i];
+        PRECISE float p = o[i] + d[i] * t0;
+        PRECISE float c = (p - g.grid_min[i]) / g.grid_cell[i];
         // floor, then clamp to 0..n − 1, without ever converting an
         // out-of-range float: on the positive values left, int() is floor.
         int ci;
@@ -140,8 +141,8 @@ float dda_jump_exit(Dda dda, int r, out int axis) {
             continue;
         }
         int edge = dda.step[i] > 0 ? dda.cell[i] + r + 1 : dda.cell[i] - r;
-        precise float plane = g.grid_min[i] + float(edge) * g.grid_cell[i];
-        precise float t = (plane - dda.o[i]) * dda.inv[i];
+        PRECISE float plane = g.grid_min[i] + float(edge) * g.grid_cell[i];
+        PRECISE float t = (plane - dda.o[i]) * dda.inv[i];
         if (t < best) {
             best = t;
             axis = i;
@@ -164,8 +165,8 @@ bool dda_jump(inout Dda dda, int r, float t, int axis) {
         if (i == axis) {
             c = dda.cell[i] + dda.step[i] * (r + 1);
         } else {
-            precise float p = dda.o[i] + dda.d[i] * t;
-            precise float f = floor((p - g.grid_min[i]) / g.grid_cell[i]);
+            PRECISE float p = dda.o[i] + dda.d[i] * t;
+            PRECISE float f = floor((p - g.grid_min[i]) / g.grid_cell[i]);
             int lo = dda.step[i] > 0 ? dda.cell[i] : dda.cell[i] - r;
             int hi = dda.step[i] > 0 ? dda.cell[i] + r : dda.cell[i];
             if (isnan(f) || f <= float(lo)) {

@@ -7,6 +7,7 @@
 #ifndef WHITTED_INTERSECT_GLSL
 #define WHITTED_INTERSECT_GLSL
 
+#include "precise.glsl"
 #include "layout.glsl"
 #include "math.glsl"
 
@@ -46,15 +47,15 @@ RayPre ray_pre(vec3 d) {
         kx = ky;
         ky = tmp;
     }
-    precise float dz = d[kz];
+    PRECISE float dz = d[kz];
     RayPre pre;
     pre.kx = kx;
     pre.ky = ky;
     pre.kz = kz;
-    precise float sx = d[kx] / dz;
-    precise float sy = d[ky] / dz;
-    precise float sz = 1.0 / dz;
-    precise vec3 inv_d = vec3(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+    PRECISE float sx = d[kx] / dz;
+    PRECISE float sy = d[ky] / dz;
+    PRECISE float sz = 1.0 / dz;
+    PRECISE vec3 inv_d = vec3(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
     pre.sx = sx;
     pre.sy = sy;
     pre.sz = sz;
@@ -68,23 +69,23 @@ Hit hit_at(float t) { return Hit(t, 0.0, 0.0); }
 // discriminant from the perpendicular distance, the near root without
 // cancellation. Handles origins inside the sphere.
 bool sphere(vec3 center, float r2, Ray ray, float tmax, out Hit h) {
-    precise vec3 l = center - ray.o;
-    precise float tca = dot3(l, ray.d);
-    precise vec3 perp = l - ray.d * tca;
-    precise float d2 = dot3(perp, perp);
+    PRECISE vec3 l = center - ray.o;
+    PRECISE float tca = dot3(l, ray.d);
+    PRECISE vec3 perp = l - ray.d * tca;
+    PRECISE float d2 = dot3(perp, perp);
     if (d2 > r2) {
         return false;
     }
-    precise float thc = sqrt(r2 - d2);
-    precise float c = dot3(l, l) - r2;
-    precise float t0;
-    precise float t1;
+    PRECISE float thc = sqrt(r2 - d2);
+    PRECISE float c = dot3(l, l) - r2;
+    PRECISE float t0;
+    PRECISE float t1;
     if (tca > 0.0) {
-        precise float q = tca + thc;
+        PRECISE float q = tca + thc;
         t0 = c / q;
         t1 = q;
     } else {
-        precise float q = tca - thc;
+        PRECISE float q = tca - thc;
         t0 = q;
         t1 = c / q;
     }
@@ -100,11 +101,11 @@ bool sphere(vec3 center, float r2, Ray ray, float tmax, out Hit h) {
 }
 
 bool plane(vec3 n, float dist, Ray ray, float tmax, out Hit h) {
-    precise float denom = dot3(n, ray.d);
+    PRECISE float denom = dot3(n, ray.d);
     if (denom == 0.0) {
         return false;
     }
-    precise float t = (dist - dot3(n, ray.o)) / denom;
+    PRECISE float t = (dist - dot3(n, ray.o)) / denom;
     if (t > 0.0 && t < tmax) {
         h = hit_at(t);
         return true;
@@ -116,36 +117,36 @@ bool plane(vec3 n, float dist, Ray ray, float tmax, out Hit h) {
 // of a shared edge are exact negations of each other (never fused), so a
 // ray through an edge or vertex hits at least one of the triangles.
 bool triangle(vec3 v0, vec3 v1, vec3 v2, Ray ray, RayPre pre, float tmax, out Hit h) {
-    precise vec3 a = v0 - ray.o;
-    precise vec3 b = v1 - ray.o;
-    precise vec3 c = v2 - ray.o;
+    PRECISE vec3 a = v0 - ray.o;
+    PRECISE vec3 b = v1 - ray.o;
+    PRECISE vec3 c = v2 - ray.o;
     int kx = pre.kx;
     int ky = pre.ky;
     int kz = pre.kz;
-    precise float ax = a[kx] - pre.sx * a[kz];
-    precise float ay = a[ky] - pre.sy * a[kz];
-    precise float bx = b[kx] - pre.sx * b[kz];
-    precise float by = b[ky] - pre.sy * b[kz];
-    precise float cx = c[kx] - pre.sx * c[kz];
-    precise float cy = c[ky] - pre.sy * c[kz];
-    precise float u = cx * by - cy * bx;
-    precise float v = ax * cy - ay * cx;
-    precise float w = bx * ay - by * ax;
+    PRECISE float ax = a[kx] - pre.sx * a[kz];
+    PRECISE float ay = a[ky] - pre.sy * a[kz];
+    PRECISE float bx = b[kx] - pre.sx * b[kz];
+    PRECISE float by = b[ky] - pre.sy * b[kz];
+    PRECISE float cx = c[kx] - pre.sx * c[kz];
+    PRECISE float cy = c[ky] - pre.sy * c[kz];
+    PRECISE float u = cx * by - cy * bx;
+    PRECISE float v = ax * cy - ay * cx;
+    PRECISE float w = bx * ay - by * ax;
     if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) {
         return false;
     }
-    precise float det = u + v + w;
+    PRECISE float det = u + v + w;
     if (det == 0.0) {
         return false;
     }
-    precise float az = pre.sz * a[kz];
-    precise float bz = pre.sz * b[kz];
-    precise float cz = pre.sz * c[kz];
-    precise float tt = u * az + v * bz + w * cz;
-    precise float t = tt / det;
+    PRECISE float az = pre.sz * a[kz];
+    PRECISE float bz = pre.sz * b[kz];
+    PRECISE float cz = pre.sz * c[kz];
+    PRECISE float tt = u * az + v * bz + w * cz;
+    PRECISE float t = tt / det;
     if (t > 0.0 && t < tmax) {
-        precise float hu = u / det;
-        precise float hv = v / det;
+        PRECISE float hu = u / det;
+        PRECISE float hv = v / det;
         h = Hit(t, hu, hv);
         return true;
     }
@@ -176,8 +177,8 @@ uint polygonCell(Prim prim, uint lists, float px, float py) {
     float uMin = floatAt(lists, at);
     float invW = floatAt(lists, at + 1u);
     float m = floatAt(lists, at + 2u);
-    precise float fb = floor((py - prim.c.x) * prim.c.y);
-    precise float fm = floor((px - uMin) * invW);
+    PRECISE float fb = floor((py - prim.c.x) * prim.c.y);
+    PRECISE float fm = floor((px - uMin) * invW);
     // Comparisons false for a NaN: such a point takes the test.
     bool within = fb >= 0.0 && fb < k && fm >= 0.0 && fm < m;
     if (!within) {
@@ -197,7 +198,7 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     if (!plane(n, prim.a.w, ray, tmax, ph)) {
         return false;
     }
-    precise vec3 p = ray.o + ray.d * ph.t;
+    PRECISE vec3 p = ray.o + ray.d * ph.t;
     uint count = uint(prim.b.x);
     uint drop = uint(prim.b.y);
     bool convex = prim.b.z != 0.0;
@@ -229,7 +230,7 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     uint lo = 0u;
     uint hi = count;
     if (banded) {
-        precise float fb = floor((py - prim.c.x) * prim.c.y);
+        PRECISE float fb = floor((py - prim.c.x) * prim.c.y);
         uint b = uint(min(max(fb, 0.0), float(bands - 1u)));
         lo = uint(floatAt(lists, b));
         hi = uint(floatAt(lists, b + 1u));
@@ -250,13 +251,13 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
         float bx = c.x;
         float by = c.y;
         if (convex) {
-            precise float ex = bx - ax;
-            precise float ey = by - ay;
-            precise float ee = ex * (py - ay) - ey * (px - ax);
+            PRECISE float ex = bx - ax;
+            PRECISE float ey = by - ay;
+            PRECISE float ee = ex * (py - ay) - ey * (px - ax);
             pos = pos || ee > 0.0;
             neg = neg || ee < 0.0;
         } else if ((ay > py) != (by > py)) {
-            precise float xc = ax + (py - ay) * (bx - ax) / (by - ay);
+            PRECISE float xc = ax + (py - ay) * (bx - ax) / (by - ay);
             if (px < xc) {
                 inside = !inside;
             }
@@ -289,8 +290,8 @@ bool aabox(vec3 lo, vec3 hi, Ray ray, RayPre pre, float tmax, out Hit h) {
             continue;
         }
         float inv = pre.inv_d[i];
-        precise float ta = (lo[i] - o) * inv;
-        precise float tb = (hi[i] - o) * inv;
+        PRECISE float ta = (lo[i] - o) * inv;
+        PRECISE float tb = (hi[i] - o) * inv;
         float tn;
         float tf;
         float sn;
@@ -332,22 +333,22 @@ bool aabox(vec3 lo, vec3 hi, Ray ray, RayPre pre, float tmax, out Hit h) {
 // (q = −(b + sign(b)·√disc)/2; roots q/a and c/q); the linear case when
 // |a| is negligible against |b|.
 bool solve_quadratic(float a, float b, float c, out float t0, out float t1) {
-    precise float negligible = 1.0e-12 * abs(b);
+    PRECISE float negligible = 1.0e-12 * abs(b);
     if (abs(a) <= negligible || a == 0.0) {
         if (b == 0.0) {
             return false;
         }
-        precise float t = -c / b;
+        PRECISE float t = -c / b;
         t0 = t;
         t1 = t;
         return true;
     }
-    precise float disc = b * b - 4.0 * a * c;
+    PRECISE float disc = b * b - 4.0 * a * c;
     if (disc < 0.0) {
         return false;
     }
-    precise float sq = sqrt(disc);
-    precise float q;
+    PRECISE float sq = sqrt(disc);
+    PRECISE float q;
     if (b < 0.0) {
         q = -0.5 * (b - sq);
     } else {
@@ -359,8 +360,8 @@ bool solve_quadratic(float a, float b, float c, out float t0, out float t1) {
         t1 = 0.0;
         return true;
     }
-    precise float r0 = q / a;
-    precise float r1 = c / q;
+    PRECISE float r0 = q / a;
+    PRECISE float r1 = c / q;
     if (r0 < r1) {
         t0 = r0;
         t1 = r1;
@@ -386,20 +387,20 @@ bool quadric(Prim prim, Ray ray, float tmax, out Hit h) {
     float ci = k2.x, cj = k2.y;
     vec3 o = ray.o;
     vec3 d = ray.d;
-    precise float a = ca * d.x * d.x
+    PRECISE float a = ca * d.x * d.x
         + cb * d.y * d.y
         + cc * d.z * d.z
         + cd * d.x * d.y
         + ce * d.x * d.z
         + cf * d.y * d.z;
-    precise float b = 2.0 * (ca * o.x * d.x + cb * o.y * d.y + cc * o.z * d.z)
+    PRECISE float b = 2.0 * (ca * o.x * d.x + cb * o.y * d.y + cc * o.z * d.z)
         + cd * (o.x * d.y + o.y * d.x)
         + ce * (o.x * d.z + o.z * d.x)
         + cf * (o.y * d.z + o.z * d.y)
         + cg * d.x
         + ch * d.y
         + ci * d.z;
-    precise float c = ca * o.x * o.x
+    PRECISE float c = ca * o.x * o.x
         + cb * o.y * o.y
         + cc * o.z * o.z
         + cd * o.x * o.y
@@ -420,7 +421,7 @@ bool quadric(Prim prim, Ray ray, float tmax, out Hit h) {
     for (int k = 0; k < 2; k++) {
         float t = k == 0 ? r0 : r1;
         if (t > 0.0 && t < tmax) {
-            precise vec3 p = o + d * t;
+            PRECISE vec3 p = o + d * t;
             if (!clipped || inside_box(p, lo, hi)) {
                 h = hit_at(t);
                 return true;
@@ -441,18 +442,18 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     float r0 = prim.a.w;
     float r1 = prim.b.w;
     float len = prim.c.x;
-    precise float k = (r1 - r0) / len;
-    precise vec3 mid = base + axis * (len * 0.5);
-    precise float tc = dot3(mid - ray.o, ray.d);
-    precise vec3 w = (ray.o + ray.d * tc) - base;
-    precise float dv = dot3(ray.d, axis);
-    precise float wv = dot3(w, axis);
-    precise vec3 pp = w - axis * wv;
-    precise vec3 dd = ray.d - axis * dv;
-    precise float rw = r0 + k * wv;
-    precise float a = dot3(dd, dd) - k * k * dv * dv;
-    precise float b = 2.0 * (dot3(pp, dd) - rw * k * dv);
-    precise float c = dot3(pp, pp) - rw * rw;
+    PRECISE float k = (r1 - r0) / len;
+    PRECISE vec3 mid = base + axis * (len * 0.5);
+    PRECISE float tc = dot3(mid - ray.o, ray.d);
+    PRECISE vec3 w = (ray.o + ray.d * tc) - base;
+    PRECISE float dv = dot3(ray.d, axis);
+    PRECISE float wv = dot3(w, axis);
+    PRECISE vec3 pp = w - axis * wv;
+    PRECISE vec3 dd = ray.d - axis * dv;
+    PRECISE float rw = r0 + k * wv;
+    PRECISE float a = dot3(dd, dd) - k * k * dv * dv;
+    PRECISE float b = 2.0 * (dot3(pp, dd) - rw * k * dv);
+    PRECISE float c = dot3(pp, pp) - rw * rw;
     float s0;
     float s1;
     if (!solve_quadratic(a, b, c, s0, s1)) {
@@ -460,8 +461,8 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     }
     for (int j = 0; j < 2; j++) {
         float s = j == 0 ? s0 : s1;
-        precise float t = tc + s;
-        precise float hgt = wv + s * dv;
+        PRECISE float t = tc + s;
+        PRECISE float hgt = wv + s * dv;
         if (t > 0.0 && t < tmax && hgt >= 0.0 && hgt <= len) {
             h = hit_at(t);
             return true;
@@ -521,7 +522,7 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
     switch (prim_kind(prim)) {
     case KIND_SPHERE:
         if (HAS_SPHERE) {
-            precise vec3 q = (p - prim.a.xyz) / prim.a.w;
+            PRECISE vec3 q = (p - prim.a.xyz) / prim.a.w;
             vec3 n = normalize3(q);
             ng = n;
             ns = n;
@@ -537,8 +538,8 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
     case KIND_TRIANGLE:
         if (HAS_TRIANGLE) {
             vec3 v0 = prim.a.xyz;
-            precise vec3 e1 = prim.b.xyz - v0;
-            precise vec3 e2 = prim.c.xyz - v0;
+            PRECISE vec3 e1 = prim.b.xyz - v0;
+            PRECISE vec3 e2 = prim.c.xyz - v0;
             vec3 n = normalize3(cross3(e1, e2));
             ng = n;
             ns = n;
@@ -546,8 +547,8 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
             // extra guard changes nothing the CPU computes.
             if (HAS_SMOOTH && prim.data != NO_NORMALS) {
                 uint i = prim.data;
-                precise float w = 1.0 - h.u - h.v;
-                precise vec3 s = extra[i].xyz * h.u
+                PRECISE float w = 1.0 - h.u - h.v;
+                PRECISE vec3 s = extra[i].xyz * h.u
                     + extra[i + 1u].xyz * h.v
                     + extra[i + 2u].xyz * w;
                 ns = normalize3(s);
@@ -574,9 +575,9 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
             vec4 k0 = extra[prim.data];
             vec4 k1 = extra[prim.data + 1u];
             vec4 k2 = extra[prim.data + 2u];
-            precise float nx = 2.0 * k0.x * p.x + k0.w * p.y + k1.x * p.z + k1.z;
-            precise float ny = 2.0 * k0.y * p.y + k0.w * p.x + k1.y * p.z + k1.w;
-            precise float nz = 2.0 * k0.z * p.z + k1.x * p.x + k1.y * p.y + k2.x;
+            PRECISE float nx = 2.0 * k0.x * p.x + k0.w * p.y + k1.x * p.z + k1.z;
+            PRECISE float ny = 2.0 * k0.y * p.y + k0.w * p.x + k1.y * p.z + k1.w;
+            PRECISE float nz = 2.0 * k0.z * p.z + k1.x * p.x + k1.y * p.y + k2.x;
             vec3 n = normalize3(vec3(nx, ny, nz));
             ng = n;
             ns = n;
@@ -586,12 +587,12 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
         if (HAS_CONE) {
             vec3 base = prim.a.xyz;
             vec3 axis = prim.b.xyz;
-            precise float k = (prim.b.w - prim.a.w) / prim.c.x;
-            precise vec3 q = p - base;
-            precise vec3 rq = q - axis * dot3(q, axis);
+            PRECISE float k = (prim.b.w - prim.a.w) / prim.c.x;
+            PRECISE vec3 q = p - base;
+            PRECISE vec3 rq = q - axis * dot3(q, axis);
             vec3 radial = normalize3(rq);
-            precise vec3 m = radial - axis * k;
-            precise vec3 n = normalize3(m) * prim.c.y;
+            PRECISE vec3 m = radial - axis * k;
+            PRECISE vec3 n = normalize3(m) * prim.c.y;
             ng = n;
             ns = n;
         }

@@ -4,6 +4,8 @@
 #ifndef WHITTED_MATH_GLSL
 #define WHITTED_MATH_GLSL
 
+#include "precise.glsl"
+
 #define INF uintBitsToFloat(0x7F800000u)
 #define NEG_INF uintBitsToFloat(0xFF800000u)
 
@@ -14,25 +16,25 @@ struct Ray {
 };
 
 float dot3(vec3 a, vec3 b) {
-    precise float r = a.x * b.x + a.y * b.y + a.z * b.z;
+    PRECISE float r = a.x * b.x + a.y * b.y + a.z * b.z;
     return r;
 }
 
 vec3 cross3(vec3 a, vec3 b) {
-    precise float x = a.y * b.z - a.z * b.y;
-    precise float y = a.z * b.x - a.x * b.z;
-    precise float z = a.x * b.y - a.y * b.x;
+    PRECISE float x = a.y * b.z - a.z * b.y;
+    PRECISE float y = a.z * b.x - a.x * b.z;
+    PRECISE float z = a.x * b.y - a.y * b.x;
     return vec3(x, y, z);
 }
 
 float length3(vec3 v) {
-    precise float r = sqrt(dot3(v, v));
+    PRECISE float r = sqrt(dot3(v, v));
     return r;
 }
 
 vec3 normalize3(vec3 v) {
-    precise float len = length3(v);
-    precise vec3 r = v / len;
+    PRECISE float len = length3(v);
+    PRECISE vec3 r = v / len;
     return r;
 }
 
@@ -55,13 +57,13 @@ float exp_twin(float z) {
     if (z >= 88.0) {
         return INF;
     }
-    precise float k = floor(z * LOG2E + 0.5);
-    precise float x = z - k * LN2_HI - k * LN2_LO;
-    precise float z2 = x * x;
-    precise float p = ((((0.00019875691 * x + 0.0013981999) * x + 0.008333452) * x
+    PRECISE float k = floor(z * LOG2E + 0.5);
+    PRECISE float x = z - k * LN2_HI - k * LN2_LO;
+    PRECISE float z2 = x * x;
+    PRECISE float p = ((((0.00019875691 * x + 0.0013981999) * x + 0.008333452) * x
         + 0.041665796) * x + 0.16666666) * x + 0.5;
-    precise float y = p * z2 + x + 1.0;
-    precise float r = y * uintBitsToFloat(uint(int(k) + 127) << 23);
+    PRECISE float y = p * z2 + x + 1.0;
+    PRECISE float r = y * uintBitsToFloat(uint(int(k) + 127) << 23);
     return r;
 }
 
@@ -78,29 +80,29 @@ float log_twin(float x) {
     x = max(x, uintBitsToFloat(0x00800000u));
     uint bits = floatBitsToUint(x);
     int e = int((bits >> 23) & 0xFFu) - 126;
-    precise float m = uintBitsToFloat((bits & 0x007FFFFFu) | 0x3F000000u);
+    PRECISE float m = uintBitsToFloat((bits & 0x007FFFFFu) | 0x3F000000u);
     if (m < 0.70710677) {
         e -= 1;
         m = m + m - 1.0;
     } else {
         m = m - 1.0;
     }
-    precise float z = m * m;
-    precise float p = (((((((0.070376836 * m - 0.1151461) * m + 0.116769984) * m
+    PRECISE float z = m * m;
+    PRECISE float p = (((((((0.070376836 * m - 0.1151461) * m + 0.116769984) * m
         - 0.12420141) * m + 0.14249323) * m - 0.16668057) * m
         + 0.20000714) * m - 0.24999994) * m + 0.3333333;
-    precise float fe = float(e);
-    precise float y = p * m * z;
+    PRECISE float fe = float(e);
+    PRECISE float y = p * m * z;
     y = y + LN2_LO * fe;
     y = y + -0.5 * z;
-    precise float r = m + y;
+    PRECISE float r = m + y;
     r = r + LN2_HI * fe;
     return r;
 }
 
 // x^y for x > 0 (a cosine and a shininess).
 float pow_twin(float x, float y) {
-    precise float a = y * log_twin(x);
+    PRECISE float a = y * log_twin(x);
     return exp_twin(a);
 }
 

@@ -6,6 +6,12 @@
 
 layout(local_size_x = 64) in;
 
+// The probes check the twins bit for bit: only the exact arithmetic will do.
+#ifdef WHITTED_FAST_MATH
+#error probe.comp is compiled exact only, without WHITTED_FAST_MATH
+#endif
+
+#include "precise.glsl"
 #include "layout.glsl"
 #include "sample.glsl"
 #include "trace.glsl"
@@ -57,7 +63,7 @@ void main() {
         Hit h;
         if (intersect(prims[it.u.x], ray, pre, tmax, h)) {
             res.a = vec4(1.0, h.t, h.u, h.v);
-            precise vec3 p = ray.o + ray.d * h.t;
+            PRECISE vec3 p = ray.o + ray.d * h.t;
             vec3 ng;
             vec3 ns;
             normals(prims[it.u.x], p, h, ng, ns);

@@ -12,6 +12,7 @@
 #ifndef WHITTED_QUERY_GLSL
 #define WHITTED_QUERY_GLSL
 
+#include "precise.glsl"
 #include "intersect.glsl"
 
 // Shadow cache (Rust: Work::shadow_cache): per light, 1 + the index of the
@@ -71,7 +72,7 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
     if (intersect(prim, ray, pre, q.t, h)) {
         if (q.shadow) {
             vec3 kt = materials[prim_material(prim)].kt.xyz;
-            precise vec3 trans = q.trans * kt;
+            PRECISE vec3 trans = q.trans * kt;
             q.trans = trans;
             if (max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
                 shadow_cache[q.light] = i + 1u;

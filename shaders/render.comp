@@ -13,6 +13,7 @@
 // Workgroup size: specialization constants 0 and 1 (default 8 × 8).
 layout(local_size_x = 8, local_size_y = 8, local_size_x_id = 0, local_size_y_id = 1) in;
 
+#include "precise.glsl"
 #include "layout.glsl"
 #include "sample.glsl"
 #include "trace.glsl"
@@ -42,14 +43,14 @@ vec3 trace_sample(float x, float y) {
 // The mean of a pixel's samples.
 vec3 render_pixel(uint px, uint py) {
     uint spp = g.image.z;
-    precise vec3 sum = vec3(0.0);
+    PRECISE vec3 sum = vec3(0.0);
     for (uint k = 0u; k < spp; k++) {
         vec2 xy = sample_pos(g, px, py, k);
         vec3 c = trace_sample(xy.x, xy.y);
         sum = sum + c;
     }
-    precise float inv = 1.0 / float(spp);
-    precise vec3 mean = sum * inv;
+    PRECISE float inv = 1.0 / float(spp);
+    PRECISE vec3 mean = sum * inv;
     return mean;
 }
 

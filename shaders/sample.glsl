@@ -3,6 +3,7 @@
 #ifndef WHITTED_SAMPLE_GLSL
 #define WHITTED_SAMPLE_GLSL
 
+#include "precise.glsl"
 #include "layout.glsl"
 #include "math.glsl"
 
@@ -20,7 +21,7 @@ uint hash(uint x) {
 // (`sample` is a GLSL keyword: the sample index is `s`.)
 float rand01(uint pixel, uint s, uint dim) {
     uint h = hash(pixel ^ hash((s * 2u + dim) ^ 0x9e3779b9u));
-    precise float r = float(h >> 8) * (1.0 / 16777216.0);
+    PRECISE float r = float(h >> 8) * (1.0 / 16777216.0);
     return r;
 }
 
@@ -31,14 +32,14 @@ vec2 sample_pos(Globals g, uint px, uint py, uint s) {
         uint nx = g.trace.z;
         uint ny = g.trace.w;
         uint pixel = py * g.image.x + px;
-        precise float sx = float(s % nx) + rand01(pixel, s, 0u);
-        precise float sy = float(s / nx) + rand01(pixel, s, 1u);
-        precise float x = float(px) + sx / float(nx);
-        precise float y = float(py) + sy / float(ny);
+        PRECISE float sx = float(s % nx) + rand01(pixel, s, 0u);
+        PRECISE float sy = float(s / nx) + rand01(pixel, s, 1u);
+        PRECISE float x = float(px) + sx / float(nx);
+        PRECISE float y = float(py) + sy / float(ny);
         return vec2(x, y);
     } else {
-        precise float x = float(px) + 0.5;
-        precise float y = float(py) + 0.5;
+        PRECISE float x = float(px) + 0.5;
+        PRECISE float y = float(py) + 0.5;
         return vec2(x, y);
     }
 }
@@ -46,12 +47,12 @@ vec2 sample_pos(Globals g, uint px, uint py, uint s) {
 // Unit direction of the eye ray through image position (x, y) (pixel units;
 // (0, 0) is the top-left corner, (width, height) the bottom-right).
 vec3 eye_dir(Globals g, float x, float y) {
-    precise float sx = x / float(g.image.x) * 2.0 - 1.0;
-    precise float sy = 1.0 - y / float(g.image.y) * 2.0;
+    PRECISE float sx = x / float(g.image.x) * 2.0 - 1.0;
+    PRECISE float sy = 1.0 - y / float(g.image.y) * 2.0;
     vec3 f = g.cam_forward.xyz;
     vec3 r = g.cam_right.xyz;
     vec3 u = g.cam_up.xyz;
-    precise vec3 d = f + r * sx + u * sy;
+    PRECISE vec3 d = f + r * sx + u * sy;
     return normalize3(d);
 }
 

@@ -4,6 +4,7 @@
 #ifndef WHITTED_SHADE_GLSL
 #define WHITTED_SHADE_GLSL
 
+#include "precise.glsl"
 #include "accel.glsl"
 
 // Ray counts as the SPD defines them (Rust: trace::RayStats), per
@@ -20,19 +21,19 @@ RayStats stats = RayStats(0u, 0u, 0u, 0u, 0u);
 // Direction of light refracted through a surface with unit normal n (facing
 // against i); false on total internal reflection. eta = n_incident / n_transmitted.
 bool refract_dir(vec3 i, vec3 n, float eta, out vec3 t) {
-    precise float cosi = -dot3(n, i);
-    precise float k = 1.0 - eta * eta * (1.0 - cosi * cosi);
+    PRECISE float cosi = -dot3(n, i);
+    PRECISE float k = 1.0 - eta * eta * (1.0 - cosi * cosi);
     if (k < 0.0) {
         return false;
     }
-    precise vec3 r = i * eta + n * (eta * cosi - sqrt(k));
+    PRECISE vec3 r = i * eta + n * (eta * cosi - sqrt(k));
     t = normalize3(r);
     return true;
 }
 
 // Mirror direction of i about unit normal n.
 vec3 reflect_dir(vec3 i, vec3 n) {
-    precise vec3 r = i - n * (2.0 * dot3(i, n));
+    PRECISE vec3 r = i - n * (2.0 * dot3(i, n));
     return normalize3(r);
 }
 
@@ -41,7 +42,7 @@ vec3 reflect_dir(vec3 i, vec3 n) {
 // outside of the surface.
 vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
     float eps = g.params.y;
-    precise vec3 c = mat.ka.xyz * g.ambient.xyz;
+    PRECISE vec3 c = mat.ka.xyz * g.ambient.xyz;
     vec3 v = -d;
     vec3 kd = mat.kd.xyz;
     float ksr = mat.ks.x;
@@ -50,10 +51,10 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
     uint li_ = 0u;
     for (; li_ < g.counts.z; li_++) {
         Light light = lights[li_];
-        precise vec3 lv = light.pos.xyz - p;
-        precise float dist = length3(lv);
-        precise vec3 l = lv / dist;
-        precise float ndotl = dot3(n, l);
+        PRECISE vec3 lv = light.pos.xyz - p;
+        PRECISE float dist = length3(lv);
+        PRECISE vec3 l = lv / dist;
+        PRECISE float ndotl = dot3(n, l);
         bool facing = ndotl > 0.0;
         if (!facing && !highlight_t) {
             continue;
@@ -63,7 +64,7 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
         if (facing || !spd_counting()) {
             stats.shadow += 1u;
         }
-        precise vec3 o;
+        PRECISE vec3 o;
         if (dot3(l, ngf) > 0.0) {
             o = p + ngf * eps;
         } else {
@@ -75,20 +76,20 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
         if (max_elem(tr) <= 0.0) {
             continue;
         }
-        precise vec3 li = light.color.xyz * tr;
+        PRECISE vec3 li = light.color.xyz * tr;
         if (HAS_FALLOFF && has(FEAT_FALLOFF)) {
             vec3 f = light.falloff.xyz;
-            precise float att = 1.0 / (f.x + f.y * dist + f.z * dist * dist);
+            PRECISE float att = 1.0 / (f.x + f.y * dist + f.z * dist * dist);
             li = li * min(att, 1.0);
         }
-        precise vec3 term = vec3(0.0);
+        PRECISE vec3 term = vec3(0.0);
         if (facing) {
             term = kd * ndotl;
             if (ksr > 0.0) {
-                precise vec3 r = n * (2.0 * ndotl) - l;
-                precise float vr = dot3(v, r);
+                PRECISE vec3 r = n * (2.0 * ndotl) - l;
+                PRECISE float vr = dot3(v, r);
                 if (vr > 0.0) {
-                    precise float spec = ksr * pow_twin(vr, mat.ks.y);
+                    PRECISE float spec = ksr * pow_twin(vr, mat.ks.y);
                     term = term + vec3(spec);
                 }
             }
@@ -97,12 +98,12 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
             // surface towards the viewer makes the transmission highlight.
             // (Reached only when highlight_t, as on the CPU.)
             float ior = mat.kr.w;
-            precise float eta = front ? ior : 1.0 / ior;
+            PRECISE float eta = front ? ior : 1.0 / ior;
             vec3 t;
             if (refract_dir(-l, -n, eta, t)) {
-                precise float vt = dot3(v, t);
+                PRECISE float vt = dot3(v, t);
                 if (vt > 0.0) {
-                    precise float spec = kst * pow_twin(vt, mat.ks.w);
+                    PRECISE float spec = kst * pow_twin(vt, mat.ks.w);
                     term = term + vec3(spec);
                 }
             }

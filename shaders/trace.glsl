@@ -15,6 +15,7 @@
 #ifndef WHITTED_TRACE_GLSL
 #define WHITTED_TRACE_GLSL
 
+#include "precise.glsl"
 #include "shade.glsl"
 
 struct Entry {
@@ -28,9 +29,9 @@ struct Entry {
 // exp(−σ·ε/|cos|): the absorption over the stretch a ray spawned into a
 // medium skips (twin of offset_absorption in src/trace/tree.rs).
 vec3 offset_absorption(vec3 sigma, float eps, float cosn) {
-    precise float c = max(abs(cosn), 1e-3);
-    precise float delta = eps / c;
-    precise vec3 x = -sigma * delta;
+    PRECISE float c = max(abs(cosn), 1e-3);
+    PRECISE float delta = eps / c;
+    PRECISE vec3 x = -sigma * delta;
     return vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
 }
 
@@ -44,7 +45,7 @@ vec3 trace_ray(Ray ray) {
     Entry stack[STACK_SIZE];
     stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
     uint sp = 1u;
-    precise vec3 color = vec3(0.0);
+    PRECISE vec3 color = vec3(0.0);
     while (sp > 0u) {
         sp -= 1u;
         Entry e = stack[sp];
@@ -62,14 +63,14 @@ vec3 trace_ray(Ray ray) {
         if (e.depth == 0u) {
             stats.eye_hit += 1u;
         }
-        precise vec3 w = e.w;
+        PRECISE vec3 w = e.w;
         if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
-            precise vec3 x = -e.medium * h.t;
+            PRECISE vec3 x = -e.medium * h.t;
             w = w * vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
         }
         Prim prim = prims[pi];
         Material mat = materials[prim_material(prim)];
-        precise vec3 p = e.o + e.d * h.t;
+        PRECISE vec3 p = e.o + e.d * h.t;
         vec3 ng;
         vec3 ns;
         normals(prim, p, h, ng, ns);
@@ -85,24 +86,24 @@ vec3 trace_ray(Ray ray) {
         if (e.depth >= max_depth) {
             continue;
         }
-        precise vec3 refl = mat.kr.xyz;
+        PRECISE vec3 refl = mat.kr.xyz;
         vec3 kt = mat.kt.xyz;
         if (HAS_REFRACT && has(FEAT_REFRACT) && max_elem(kt) > 0.0) {
             float ior = mat.kr.w;
-            precise float eta = front ? 1.0 / ior : ior;
+            PRECISE float eta = front ? 1.0 / ior : ior;
             vec3 t;
             if (!refract_dir(e.d, n, eta, t)) {
                 // Total internal reflection: the transmitted share reflects.
                 refl = refl + kt;
             } else {
-                precise vec3 wt = w * kt;
+                PRECISE vec3 wt = w * kt;
                 vec3 medium = front ? mat.absorb.xyz : vec3(0.0);
                 if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(medium) > 0.0) {
                     wt = wt * offset_absorption(medium, eps, dot3(ngf, t));
                 }
                 if (max_elem(wt) >= min_weight) {
                     stats.refract += 1u;
-                    precise vec3 o = p - ngf * eps;
+                    PRECISE vec3 o = p - ngf * eps;
                     stack[sp] = Entry(o, t, wt, medium, e.depth + 1u);
                     sp += 1u;
                 }
@@ -112,14 +113,14 @@ vec3 trace_ray(Ray ray) {
         // only ways refl can be positive (or SPD counting spawn a ray):
         // the guard changes nothing.
         if (HAS_REFLECT && (max_elem(refl) > 0.0 || (spd && max_elem(kt) > 0.0))) {
-            precise vec3 wr = w * refl;
+            PRECISE vec3 wr = w * refl;
             vec3 dr = reflect_dir(e.d, n);
             if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
                 wr = wr * offset_absorption(e.medium, eps, dot3(ngf, dr));
             }
             if (max_elem(wr) >= min_weight) {
                 stats.reflect += 1u;
-                precise vec3 o = p + ngf * eps;
+                PRECISE vec3 o = p + ngf * eps;
                 stack[sp] = Entry(o, dr, wr, e.medium, e.depth + 1u);
                 sp += 1u;
             }

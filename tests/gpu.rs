@@ -175,6 +175,7 @@ fn shader_layout_matches_rust() {
     ];
     for (kernel, spv) in [
         ("render", whitted::gpu::shaders::RENDER),
+        ("render_fast", whitted::gpu::shaders::RENDER_FAST),
         ("probe", whitted::gpu::shaders::PROBE),
     ] {
         let r = reflect(spv);
@@ -216,7 +217,7 @@ fn shader_layout_matches_rust() {
             ("BvhChild".into(), size_of::<BvhChild>() as u32),
             "{kernel}.comp binding 11"
         );
-        if kernel == "render" {
+        if kernel.starts_with("render") {
             assert_eq!(r.binding_array(7).1, 16, "render.comp samples");
             assert_eq!(r.binding_array(8).1, 4, "render.comp counts");
         } else {
@@ -234,6 +235,38 @@ fn shader_layout_matches_rust() {
             );
         }
     }
+}
+
+/// How many NoContraction decorations (GLSL `precise`) a module carries.
+fn no_contraction(spv: &[u8]) -> usize {
+    use rspirv::dr::Operand::Decoration;
+    use rspirv::spirv::{Decoration as D, Op};
+    let m = rspirv::dr::load_bytes(spv).unwrap_or_else(|e| panic!("not SPIR-V: {e}"));
+    m.annotations
+        .iter()
+        .filter(|i| {
+            matches!(i.class.opcode, Op::Decorate | Op::MemberDecorate)
+                && i.operands.contains(&Decoration(D::NoContraction))
+        })
+        .count()
+}
+
+/// `--gpu-math`: the fast render kernel is the exact one without
+/// `precise` (no NoContraction left), and the probe kernel, which checks
+/// the twins bit for bit, stays exact. Needs no device.
+#[test]
+fn the_fast_kernel_is_the_exact_one_without_precise() {
+    use whitted::gpu::shaders::{PROBE, RENDER, RENDER_FAST};
+    let (exact, fast, probe) = (
+        no_contraction(RENDER),
+        no_contraction(RENDER_FAST),
+        no_contraction(PROBE),
+    );
+    println!("NoContraction: render {exact}, render_fast {fast}, probe {probe}");
+    assert!(exact > 100, "render.spv has only {exact} NoContraction");
+    assert_eq!(fast, 0, "render_fast.spv still has NoContraction");
+    assert!(probe > 100, "probe.spv has only {probe} NoContraction");
+    assert_ne!(RENDER, RENDER_FAST);
 }
 
 // ------------------------------------------------------------ GPU vs CPU

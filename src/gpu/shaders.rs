@@ -1,7 +1,14 @@
 //! The SPIR-V modules build.rs compiled from `shaders/*.comp` (SPIR-V 1.3,
 //! Vulkan 1.1).
 
-/// `shaders/render.comp`: the per-pixel entry (twin of `cpu.rs`).
+/// `shaders/render.comp`: the per-pixel entry (twin of `cpu.rs`), exact:
+/// its arithmetic is `precise` (`shaders/precise.glsl`), so lavapipe
+/// matches the CPU mirror bit for bit.
 pub const RENDER: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/render.spv"));
-/// `shaders/probe.comp`: test kernels running one function on many inputs.
+/// `shaders/render.comp` compiled with `WHITTED_FAST_MATH`: no `precise`,
+/// so the driver may reorder and fuse its float arithmetic
+/// (`--gpu-math fast`).
+pub const RENDER_FAST: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/render_fast.spv"));
+/// `shaders/probe.comp`: test kernels running one function on many inputs
+/// (always exact).
 pub const PROBE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv"));
