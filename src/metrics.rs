@@ -197,6 +197,18 @@ impl Tolerance {
             Tolerance::default()
         }
     }
+    /// The tolerance for a device of kind `kind` running the render kernel
+    /// `math`: the exact kernel's is `for_device`'s; the fast kernel's is
+    /// the default on every device, lavapipe included, since arithmetic the
+    /// driver may reorder and fuse differs from the mirror's in the last
+    /// bits wherever it runs (docs/gpu.md, "Exact and fast shader
+    /// arithmetic").
+    pub fn for_kernel(kind: crate::gpu::DeviceKind, math: crate::gpu::GpuMath) -> Tolerance {
+        match math {
+            crate::gpu::GpuMath::Exact => Tolerance::for_device(kind),
+            crate::gpu::GpuMath::Fast => Tolerance::default(),
+        }
+    }
 }
 
 /// One ray kind's counts on both sides.
@@ -439,5 +451,24 @@ mod tests {
         let img = c.diff_image();
         assert_eq!(img.dimensions(), (w, h));
         assert_ne!(img.get_pixel(0, 0), img.get_pixel(15, 15));
+    }
+
+    #[test]
+    fn only_the_exact_kernel_on_a_cpu_device_is_held_to_bit_equality() {
+        use crate::gpu::{DeviceKind, GpuMath};
+        assert_eq!(
+            Tolerance::for_kernel(DeviceKind::Cpu, GpuMath::Exact),
+            Tolerance::exact()
+        );
+        for kind in [DeviceKind::Cpu, DeviceKind::Discrete] {
+            assert_eq!(
+                Tolerance::for_kernel(kind, GpuMath::Fast),
+                Tolerance::default()
+            );
+        }
+        assert_eq!(
+            Tolerance::for_kernel(DeviceKind::Discrete, GpuMath::Exact),
+            Tolerance::default()
+        );
     }
 }

@@ -144,6 +144,43 @@ fn corner_sampling_renders() {
     assert_eq!(j["rays"]["eye"], 33 * 25);
 }
 
+/// `--gpu-math`: `fast` is a value render takes (with the CPU backend it
+/// changes nothing and says so); anything else is a usage error (exit 2)
+/// naming the values.
+#[test]
+fn gpu_math_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "s.toml", SCENE);
+    let out = dir.path().join("out.png");
+    let a = whitted()
+        .args(["render", "--backend", "cpu", "--gpu-math", "fast"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .success();
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(err.contains("--gpu-math fast has no effect"), "{err}");
+    assert!(out.exists());
+    let a = whitted()
+        .args(["render", "--gpu-math", "bogus"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("x.png"))
+        .assert()
+        .code(2);
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(
+        err.contains("bogus") && err.contains("exact") && err.contains("fast"),
+        "{err}"
+    );
+    whitted()
+        .args(["validate", "--gpu-math", "bogus"])
+        .arg(&scene)
+        .assert()
+        .code(2);
+}
+
 /// Runs a render of `text` saved as `name` and expects exit code 2, stderr
 /// containing `fragment`, and no output file.
 fn bad_input(name: &str, text: &str, fragment: &str) {

@@ -16,7 +16,7 @@ use std::time::Duration;
 use whitted::cpu::{self, Frame};
 use whitted::gpu::loops::{self, Driver, LoopLoad};
 use whitted::gpu::{
-    DeviceKind, Fault, Gpu, GpuError, GpuOptions, PipelineCache, ProbeItem, ProbeResult,
+    DeviceKind, Fault, Gpu, GpuError, GpuMath, GpuOptions, PipelineCache, ProbeItem, ProbeResult,
 };
 use whitted::metrics::{self, Tolerance};
 use whitted::pack::layout::{BvhChild, Globals, Light, Material, Prim};
@@ -286,7 +286,13 @@ fn render_both(p: &Packed, opts: &GpuOptions) -> Option<(Frame, Frame)> {
 /// image and names it.
 fn assert_close(name: &str, cpu: &Frame, gpu: &Frame) {
     let kind = common::gpu().expect("a GPU frame has a device").info().kind;
-    let c = metrics::compare(cpu, gpu, &Tolerance::for_device(kind));
+    assert_within(name, cpu, gpu, &Tolerance::for_device(kind));
+}
+
+/// Compares within `tol`; on failure writes the difference image and
+/// names it.
+fn assert_within(name: &str, cpu: &Frame, gpu: &Frame, tol: &Tolerance) {
+    let c = metrics::compare(cpu, gpu, tol);
     println!(
         "{name}: max abs {:.2e}, mean abs {:.2e}, PSNR {:.1} dB, FLIP {:.5}, {} pixels over; rays {:?}",
         c.max_abs, c.mean_abs, c.psnr, c.mean_flip, c.pixels_over, gpu.stats
@@ -392,6 +398,49 @@ fn corner_and_jittered_sampling_match() {
             );
         }
         assert_close(name, &c, &g);
+    }
+}
+
+/// `--gpu-math fast`: the kernel without `precise` renders the showcase
+/// within its validate tolerance of the CPU mirror (`Tolerance::
+/// for_kernel`: the hardware one, on lavapipe too), grid and BVH; and
+/// switching kernels on one device changes nothing of the exact one's
+/// image (each kernel is its own pipeline).
+#[test]
+fn the_fast_kernel_renders_close_to_the_mirror() {
+    let Some(g) = common::gpu() else {
+        return;
+    };
+    let path = common::repo().join("scenes/showcase.toml");
+    let fast = GpuOptions {
+        math: GpuMath::Fast,
+        ..Default::default()
+    };
+    for accel in [Accel::Grid, Accel::Bvh] {
+        let p = common::load(
+            &path,
+            &Settings {
+                accel,
+                ..common::small(96, 72)
+            },
+        );
+        let exact = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap();
+        let Some((c, f)) = render_both(&p, &fast) else {
+            return;
+        };
+        let name = format!("showcase {accel:?} fast");
+        assert_close(&format!("showcase {accel:?} exact"), &c, &exact);
+        let kind = g.info().kind;
+        assert_within(&name, &c, &f, &Tolerance::for_kernel(kind, GpuMath::Fast));
+        let vs_exact = metrics::compare(&exact, &f, &Tolerance::default());
+        println!(
+            "{name} against exact: max abs {:.2e}, PSNR {:.1} dB",
+            vs_exact.max_abs, vs_exact.psnr
+        );
+        let again = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap();
+        assert_eq!(again.pixels, exact.pixels, "{name}: exact after fast");
+        assert_eq!(again.stats, exact.stats, "{name}: exact after fast");
+        common::assert_no_validation_errors();
     }
 }
 
@@ -559,6 +608,7 @@ fn cli_backend_gpu_end_to_end() {
     );
     assert!(s["seconds"]["gpu"].is_number() || s["seconds"]["gpu"].is_null());
     assert_eq!(s["rays"]["eye"], 64 * 48);
+    assert_eq!(s["gpu_math"], "exact");
 
     // validate: agrees, exit 0, with a difference image.
     let diff = dir.path().join("d.png");
@@ -626,6 +676,67 @@ fn cli_backend_gpu_end_to_end() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
+}
+
+/// `--gpu-math fast` end to end: `render` uses the fast kernel (and says
+/// so in --stats), `validate` checks it against the mirror with the usual
+/// tolerance.
+#[test]
+fn cli_gpu_math_fast() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("f.png");
+    let json = dir.path().join("f.json");
+    let o = whitted()
+        .env("WHITTED_VALIDATION", "1")
+        .args([
+            "render",
+            "scenes/showcase.toml",
+            "--width",
+            "48",
+            "--height",
+            "36",
+            "--backend",
+            "gpu",
+            "--gpu-math",
+            "fast",
+            "-q",
+            "-o",
+        ])
+        .arg(&png)
+        .arg("--stats")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    assert!(!stderr_of(&o).contains("vulkan:"), "{}", stderr_of(&o));
+    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(s["backend"], "gpu");
+    assert_eq!(s["gpu_math"], "fast");
+    assert_eq!(s["rays"]["eye"], 48 * 36);
+
+    let o = whitted()
+        .env("WHITTED_VALIDATION", "1")
+        .args([
+            "validate",
+            "scenes/showcase.toml",
+            "--width",
+            "48",
+            "--height",
+            "36",
+            "--gpu-math",
+            "fast",
+            "--json",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr_of(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["gpu_math"], "fast");
+    assert_eq!(v["passed"], true);
 }
 
 /// With no Vulkan driver at all (the loader pointed at a missing ICD):

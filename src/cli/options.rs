@@ -1,6 +1,6 @@
 //! Options shared by `render` and `validate`, and their parsers.
 
-use crate::gpu::{self, GpuOptions, PipelineCache};
+use crate::gpu::{self, GpuMath, GpuOptions, PipelineCache};
 use crate::pack::{Accel, Counting, Preset, Sampling, Settings};
 use clap::Args;
 use std::path::PathBuf;
@@ -138,6 +138,19 @@ pub struct GpuArgs {
     /// --tile rather than a longer wait.
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub fence_timeout: Option<Duration>,
+    /// The GPU kernel's float arithmetic: the CPU mirror's order, or
+    /// reordered and fused by the driver.
+    ///
+    /// `exact` keeps the CPU mirror's order of operations, nothing
+    /// reordered or fused (lavapipe matches the mirror bit for bit).
+    /// `fast` lets the driver reorder and fuse (multiply-add) the float
+    /// arithmetic: faster on some devices, and the image then differs from
+    /// the CPU mirror's in the last bits. `validate` checks the exact
+    /// kernel unless given `fast` (then the fast one, within the tolerance
+    /// a hardware GPU gets). See docs/gpu.md, "Exact and fast shader
+    /// arithmetic".
+    #[arg(long, value_enum, value_name = "MATH", default_value_t = GpuMath::Exact)]
+    pub gpu_math: GpuMath,
 }
 
 impl GpuArgs {
@@ -154,6 +167,7 @@ impl GpuArgs {
                 Some(p) => PipelineCache::Dir(p.clone()),
             },
             fence_timeout: self.fence_timeout,
+            math: self.gpu_math,
             ..Default::default()
         }
     }

@@ -84,6 +84,9 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
             "-o -: standard output is a terminal; redirect it to a file or a program"
         )));
     }
+    if a.backend == Backend::Cpu && a.gpu.gpu_math == crate::gpu::GpuMath::Fast {
+        log::warn!("--gpu-math fast has no effect with --backend cpu");
+    }
     let scene = super::load_scene(ui, &a.scene)?;
     let t_load = t_start.elapsed().as_secs_f64();
     log::debug!("loaded {} in {t_load:.3} s", a.scene.display());
@@ -110,6 +113,9 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     bar.finish();
     let mut r = r?;
     r.pack_seconds = t_build;
+    if let Some(s) = r.frame.device_seconds {
+        log::debug!("device time {s:.3} s ({} arithmetic)", opts.gpu.math.name());
+    }
     let frame = &r.frame;
     output::write_to(frame, &dest, a.encoding).map_err(user)?;
     let total = t_start.elapsed().as_secs_f64();
@@ -118,6 +124,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
             "backend": r.used,
             "precision": if r.used == run::Used::Cpu { Some(a.precision) } else { None },
             "device": r.device,
+            "gpu_math": (r.used == run::Used::Gpu).then_some(opts.gpu.math),
             "width": frame.width,
             "height": frame.height,
             "rays": frame.stats,

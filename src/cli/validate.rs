@@ -64,7 +64,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
         .render(&packed, &gopts, &|_, _| {})
         .map_err(run::gpu_error)?;
     let cpu_frame = run::render_cpu(&packed, a.opts.threads, run::Precision::F32, &|_, _| {})?;
-    let tol = Tolerance::for_device(g.info().kind);
+    let tol = Tolerance::for_kernel(g.info().kind, gopts.math);
     let c = metrics::compare(&cpu_frame, &gpu_frame, &tol);
     if let Some(path) = &a.diff {
         let img = c.diff_image();
@@ -80,6 +80,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
         let json = serde_json::json!({
             "scene": a.scene,
             "device": g.info().name,
+            "gpu_math": gopts.math,
             "comparison": c,
             "passed": c.passed(),
             "seconds": { "cpu": cpu_frame.seconds, "gpu_wall": gpu_frame.seconds, "gpu": gpu_frame.device_seconds },
@@ -94,11 +95,12 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
     let to_stdout = a.json.as_deref() != Some(std::path::Path::new("-"));
     if !ui.quiet && to_stdout {
         println!(
-            "{}: {}x{}, CPU mirror vs {}",
+            "{}: {}x{}, CPU mirror vs {} ({} arithmetic)",
             a.scene.display(),
             c.width,
             c.height,
-            g.info().name
+            g.info().name,
+            gopts.math.name()
         );
         println!("  max abs error    {:.3e}", c.max_abs);
         println!("  mean abs error   {:.3e}", c.mean_abs);

@@ -317,10 +317,45 @@ pub enum PipelineCache {
     Dir(PathBuf),
 }
 
+/// The render kernel's float arithmetic (`--gpu-math`; docs/gpu.md,
+/// "Exact and fast shader arithmetic").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GpuMath {
+    /// Every operation whose order matters is `precise`, in the CPU
+    /// mirror's order: a CPU Vulkan device (lavapipe) matches the mirror
+    /// bit for bit.
+    #[default]
+    Exact,
+    /// The same shader without `precise`: the driver may reorder and fuse
+    /// float arithmetic; the image differs from the mirror's in the last
+    /// bits.
+    Fast,
+}
+
+impl GpuMath {
+    /// The name `--gpu-math` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            GpuMath::Exact => "exact",
+            GpuMath::Fast => "fast",
+        }
+    }
+
+    /// The render kernel's name (the SPIR-V file build.rs wrote, the key
+    /// of `Gpu`'s kernels) and module.
+    fn render_kernel(self) -> (&'static str, &'static [u8]) {
+        match self {
+            GpuMath::Exact => ("render", shaders::RENDER),
+            GpuMath::Fast => ("render_fast", shaders::RENDER_FAST),
+        }
+    }
+}
+
 /// How to run on the GPU. `device`, `real_gpu_only`, `sync_validation`,
 /// `fault`, `fence_timeout` and `pipeline_cache` are read when the device
-/// is opened (`Gpu::new`); `tile`, `workgroup` and `staging` by each
-/// render.
+/// is opened (`Gpu::new`); `tile`, `workgroup`, `staging` and `math` by
+/// each render.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GpuOptions {
     /// `--device N`: index in `devices()`; None: the best usable device.
@@ -345,6 +380,8 @@ pub struct GpuOptions {
     pub fence_timeout: Option<Duration>,
     /// Where compiled pipelines are cached.
     pub pipeline_cache: PipelineCache,
+    /// Which render kernel: exact (`precise`, the default) or fast.
+    pub math: GpuMath,
 }
 
 impl Default for GpuOptions {
@@ -359,6 +396,7 @@ impl Default for GpuOptions {
             fault: None,
             fence_timeout: None,
             pipeline_cache: PipelineCache::Default,
+            math: GpuMath::Exact,
         }
     }
 }
@@ -458,7 +496,8 @@ type RenderPush = [u32; 8];
 /// probe.comp's push constants: mode, item count, two unused words.
 type ProbePush = [u32; 4];
 
-/// Kernels by (name, specialization constants 0..=2).
+/// Kernels by (name: `render`, `render_fast` or `probe`, specialization
+/// constants 0..=2): the exact and the fast render kernels never share one.
 type KernelCache = Mutex<HashMap<(&'static str, [u32; 3]), Arc<Kernel>>>;
 
 /// An open device with its kernels, reusable across renders and probes.
@@ -693,15 +732,16 @@ impl Gpu {
         Ok(())
     }
 
-    /// Renders with `shaders/render.comp`, tile by tile; `progress(done,
-    /// total)` after each tile.
+    /// Renders with `shaders/render.comp` (the exact or the fast kernel,
+    /// `opts.math`), tile by tile; `progress(done, total)` after each tile.
     pub fn render(
         &self,
         packed: &Packed,
         opts: &GpuOptions,
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
-        self.guarded(|| self.render_with(shaders::RENDER, "render", packed, opts, progress))
+        let (name, spirv) = opts.math.render_kernel();
+        self.guarded(|| self.render_with(spirv, name, packed, opts, progress))
     }
 
     fn render_with(

@@ -204,6 +204,9 @@ impl Drop for Kernel {
 
 /// A `VkPipelineCache` loaded from and saved to a file in the cache
 /// folder (`context::Settings::cache_dir`), one file per vendor and device.
+/// Every kernel (render, render_fast, probe) shares the file: the driver
+/// keys each pipeline in it by a hash of the whole pipeline, SPIR-V module
+/// and specialization constants included, so two modules never collide.
 /// A missing, stale, corrupt or unwritable file never fails a render: it
 /// means no cache, with a warning through `log` where something is wrong
 /// (docs/gpu.md, "Pipeline cache").
