@@ -39,10 +39,12 @@ pub struct Case {
 /// Who renders.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Engine {
-    /// `whitted render --backend cpu|gpu [--accel A]`.
+    /// `whitted render --backend cpu|gpu [--accel A] [--gpu-math M]`.
     Whitted {
         backend: String,
         accel: Option<String>,
+        /// The GPU kernel (None: the default, exact).
+        gpu_math: Option<crate::gpu::GpuMath>,
         label: String,
     },
     /// POV-Ray 3.7 on the scene exported by `whitted export`.
@@ -271,7 +273,12 @@ fn timed(mut cmd: Command, what: &str) -> Result<(f64, Option<u64>, std::process
 /// One run of `engine` on `case`, writing its image to `image`.
 pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Result<Sample> {
     match engine {
-        Engine::Whitted { backend, accel, .. } => {
+        Engine::Whitted {
+            backend,
+            accel,
+            gpu_math,
+            ..
+        } => {
             let stats = image.with_extension("json");
             let mut cmd = Command::new(&plan.exe);
             cmd.args(["-q", "render"])
@@ -280,6 +287,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                 .arg(image)
                 .args(["--backend", backend])
                 .args(accel.iter().flat_map(|a| ["--accel", a.as_str()]))
+                .args(gpu_math.iter().flat_map(|m| ["--gpu-math", m.name()]))
                 .arg("--stats")
                 .arg(&stats)
                 .args(&case.args);

@@ -121,6 +121,7 @@ fn bench_refuses_bad_requests_before_work() {
         (vec!["bench", "--plot", "x.pdf"], "writes .svg or .png"),
         (vec!["bench", "--only", "nothing-matches"], "no case to run"),
         (vec!["bench", "--runs", "0"], "0"),
+        (vec!["bench", "--gpu-math", "fast"], "--gpu-math"),
     ] {
         let out = whitted()
             .current_dir(d.path())

@@ -680,7 +680,7 @@ fn cli_backend_gpu_end_to_end() {
 
 /// `--gpu-math fast` end to end: `render` uses the fast kernel (and says
 /// so in --stats), `validate` checks it against the mirror with the usual
-/// tolerance.
+/// tolerance, and `bench` times both kernels as separate engines.
 #[test]
 fn cli_gpu_math_fast() {
     if common::gpu().is_none() {
@@ -737,6 +737,41 @@ fn cli_gpu_math_fast() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["gpu_math"], "fast");
     assert_eq!(v["passed"], true);
+
+    let csv = dir.path().join("b.csv");
+    let o = whitted()
+        .args([
+            "-q",
+            "bench",
+            "--suite",
+            "examples",
+            "--only",
+            "showcase",
+            "--resolution",
+            "16x12",
+            "--runs",
+            "1",
+            "--warmup",
+            "0",
+            "--backends",
+            "gpu",
+            "--gpu-math",
+            "exact,fast",
+            "--csv",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let engines: Vec<&str> = text
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').find(|f| f.starts_with("gpu:")))
+        .collect();
+    assert_eq!(engines.len(), 2, "{text}");
+    assert!(!engines[0].ends_with("/fast"), "{text}");
+    assert!(engines[1].ends_with("/fast"), "{text}");
 }
 
 /// With no Vulkan driver at all (the loader pointed at a missing ICD):

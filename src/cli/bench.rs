@@ -7,6 +7,7 @@ use crate::error::user;
 use crate::files::{self, Dest, Output};
 use crate::gen;
 use crate::gen::spd::{self, SpdScene};
+use crate::gpu::GpuMath;
 use crate::scene::Scene;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -53,6 +54,11 @@ pub struct BenchArgs {
     /// only (docs/method.md, "Choosing the structure").
     #[arg(long, value_delimiter = ',', value_parser = ["grid", "bvh", "auto"])]
     pub accel: Vec<String>,
+    /// GPU kernels to time (comma-separated, e.g. exact,fast): the gpu
+    /// backend once per kernel, the fast one labelled e.g.
+    /// gpu:llvmpipe/fast; default: exact only (`render --gpu-math`).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub gpu_math: Vec<crate::gpu::GpuMath>,
     /// Also render each scene with POV-Ray 3.7 (exported by `whitted
     /// export`, same size and depth, all cores, no anti-aliasing: pixel
     /// centres, or the corner rays of --preset spd),
@@ -204,31 +210,54 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
     } else {
         a.backends.clone()
     };
+    if !a.gpu_math.is_empty() && !wanted.iter().any(|b| b == "gpu") {
+        bail!(user(anyhow!(
+            "--gpu-math times the gpu backend's kernels, and it is not among --backends"
+        )));
+    }
+    let maths = if a.gpu_math.is_empty() {
+        vec![GpuMath::Exact]
+    } else {
+        a.gpu_math.clone()
+    };
     let mut out = Vec::new();
     for b in wanted {
-        let label = if b == "gpu" {
+        let (base, maths): (String, &[GpuMath]) = if b == "gpu" {
             let name = gpu_name.as_deref().ok_or_else(|| {
                 user(anyhow!(
                     "--backends gpu: there is no usable Vulkan device (see `whitted devices`)"
                 ))
             })?;
-            format!("gpu:{}", name.split_whitespace().next().unwrap_or("gpu"))
+            (
+                format!("gpu:{}", name.split_whitespace().next().unwrap_or("gpu")),
+                &maths,
+            )
         } else {
-            "cpu".into()
+            ("cpu".into(), &[GpuMath::Exact])
         };
-        if a.accel.is_empty() {
-            out.push(Engine::Whitted {
-                backend: b,
-                accel: None,
-                label,
-            });
-        } else {
-            for accel in &a.accel {
+        for &math in maths {
+            // The exact kernel keeps the plain label (the default, as before).
+            let label = match math {
+                GpuMath::Exact => base.clone(),
+                GpuMath::Fast => format!("{base}/fast"),
+            };
+            let gpu_math = (b == "gpu").then_some(math);
+            if a.accel.is_empty() {
                 out.push(Engine::Whitted {
                     backend: b.clone(),
-                    accel: Some(accel.clone()),
-                    label: format!("{label}/{accel}"),
+                    accel: None,
+                    gpu_math,
+                    label,
                 });
+            } else {
+                for accel in &a.accel {
+                    out.push(Engine::Whitted {
+                        backend: b.clone(),
+                        accel: Some(accel.clone()),
+                        gpu_math,
+                        label: format!("{label}/{accel}"),
+                    });
+                }
             }
         }
     }
