@@ -23,13 +23,14 @@ pub enum Knob {
     MaxDepth,
     /// --min-weight (adaptive depth control): 1/4 ... 1/4096 and 0.
     MinWeight,
-    /// --spp: 1, 2, 4, 8, 16.
+    /// --spp: 1, 2, 4, 8, 16, 32, 64.
     Spp,
     /// --sampling: centers, corners.
     Sampling,
     /// --precision: f32, f64 (CPU).
     Precision,
-    /// The backend and shader variant: cpu, gpu (when a device is there).
+    /// The backend and shader variant: cpu, gpu, gpu-fast (the GPU ones
+    /// when a Vulkan device can be opened).
     Backend,
     /// The grid's resolution: the heuristic's scaled by 1/4, 1/2, 1, 2 per
     /// axis.
@@ -69,7 +70,10 @@ impl Knob {
 #[serde(rename_all = "kebab-case")]
 pub enum Device {
     Cpu,
+    /// The exact kernel (`--gpu-math exact`).
     Gpu,
+    /// The fast kernel (`--gpu-math fast`).
+    GpuFast,
 }
 
 /// One point's settings: the defaults with one knob moved.
@@ -164,7 +168,7 @@ pub fn values(knob: Knob, gpu: bool) -> Vec<(String, Config)> {
                 with(label, &|c| c.min_weight = w)
             })
             .collect(),
-        Knob::Spp => [1u32, 2, 4, 8, 16]
+        Knob::Spp => [1u32, 2, 4, 8, 16, 32, 64]
             .iter()
             .map(|&n| with(n.to_string(), &|c| c.spp = n))
             .collect(),
@@ -180,6 +184,7 @@ pub fn values(knob: Knob, gpu: bool) -> Vec<(String, Config)> {
             let mut v = vec![with("cpu".into(), &|c| c.device = Device::Cpu)];
             if gpu {
                 v.push(with("gpu".into(), &|c| c.device = Device::Gpu));
+                v.push(with("gpu-fast".into(), &|c| c.device = Device::GpuFast));
             }
             v
         }
@@ -234,10 +239,20 @@ fn once(
     let packed: Packed = run::pack(scene, &plan.settings(c, heuristic), Counting::Traced)?;
     let frame = match (c.device, gpu) {
         (Device::Cpu, _) => run::render_cpu(&packed, plan.threads, c.precision, &|_, _| {})?,
-        (Device::Gpu, Some(g)) => g
-            .render(&packed, &plan.gpu, &|_, _| {})
-            .map_err(run::gpu_error)?,
-        (Device::Gpu, None) => return Err(anyhow!("no GPU for a GPU point")),
+        (Device::Gpu | Device::GpuFast, Some(g)) => {
+            let math = if c.device == Device::GpuFast {
+                crate::gpu::GpuMath::Fast
+            } else {
+                crate::gpu::GpuMath::Exact
+            };
+            let opts = crate::gpu::GpuOptions {
+                math,
+                ..plan.gpu.clone()
+            };
+            g.render(&packed, &opts, &|_, _| {})
+                .map_err(run::gpu_error)?
+        }
+        (_, None) => return Err(anyhow!("no GPU for a GPU point")),
     };
     Ok((t.elapsed().as_secs_f64(), frame))
 }
@@ -410,7 +425,7 @@ pub fn chart(points: &[Point], title: &str) -> Chart {
     });
     if t1 > 0.0 {
         let mut line = Series::new("1/255 (one display step)", vec![(t0, STEP), (t1, STEP)]);
-        line.line = true;
+        line.color = Some((0, 0, 0));
         series.push(line);
     }
     Chart {
@@ -564,5 +579,6 @@ mod tests {
             }
         }
         assert_eq!(values(Knob::Backend, false).len(), 1);
+        assert_eq!(values(Knob::Backend, true).len(), 3);
     }
 }

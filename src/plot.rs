@@ -21,6 +21,9 @@ pub struct Series {
     pub line: bool,
     /// Mark these points (indices into `points`) with a ring (e.g. a Pareto front).
     pub marked: Vec<usize>,
+    /// A fixed colour (RGB) instead of the palette's next one, e.g. black
+    /// for a reference line.
+    pub color: Option<(u8, u8, u8)>,
 }
 
 impl Series {
@@ -30,6 +33,7 @@ impl Series {
             points,
             line: true,
             marked: Vec::new(),
+            color: None,
         }
     }
 }
@@ -208,7 +212,10 @@ where
     }
     mesh.draw().map_err(e)?;
     for (i, s) in chart.series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
+        let color = match s.color {
+            Some((r, g, b)) => RGBColor(r, g, b).to_rgba(),
+            None => Palette99::pick(i).to_rgba(),
+        };
         let style = ShapeStyle::from(&color).stroke_width(2);
         let pts: Vec<(f64, f64)> = s
             .points

@@ -150,7 +150,7 @@ fn the_chart_measures_each_knob_against_the_reference() {
             .unwrap_or_else(|| panic!("no row {knob}={value}"));
         row[col(c)].parse().unwrap()
     };
-    assert_eq!(rows.len(), 10 + 5 + 2);
+    assert_eq!(rows.len(), 10 + 7 + 2);
     // Depth 0 misses every reflection; depth 16 leaves only sampling error.
     assert!(get("max-depth", "0", "rmse") > 2.0 * get("max-depth", "16", "rmse"));
     // Against the reference through the same samples the deep tree is
