@@ -27,6 +27,9 @@ pub struct Frame {
     pub seconds: f64,
     /// Seconds the device reported for its dispatches, when it has a clock.
     pub device_seconds: Option<f64>,
+    /// Wall seconds of each phase of a GPU render, in order (upload,
+    /// pipeline, warm-up, dispatch, readback); empty for the CPU.
+    pub phases: Vec<(&'static str, f64)>,
 }
 
 /// Renders on all cores of the current rayon pool, in f32 (the GPU's twin).
@@ -109,6 +112,7 @@ pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> F
         work,
         seconds: t0.elapsed().as_secs_f64(),
         device_seconds: None,
+        phases: Vec::new(),
     }
 }
 

@@ -23,6 +23,7 @@ pub mod output;
 pub mod pack;
 pub mod plot;
 pub mod povray;
+pub mod profile;
 pub mod reference;
 pub mod run;
 pub mod scene;

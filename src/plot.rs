@@ -94,15 +94,52 @@ fn font() -> Result<()> {
     r.as_ref().map(|_| ()).map_err(|e| anyhow!("{e}"))
 }
 
+/// A heat map: a value per (row, column), None where there is none.
+#[derive(Clone, Debug, Default)]
+pub struct HeatMap {
+    pub title: String,
+    pub rows: Vec<String>,
+    pub columns: Vec<String>,
+    pub row_label: String,
+    pub column_label: String,
+    /// values[row][column]; at least 1 where present (a ratio to the best).
+    pub values: Vec<Vec<Option<f64>>>,
+    pub value_label: String,
+}
+
+enum Drawing<'a> {
+    Chart(&'a Chart),
+    Heat(&'a HeatMap),
+}
+
+fn render_any<DB: DrawingBackend>(d: &Drawing, root: &DrawingArea<DB, Shift>) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    match d {
+        Drawing::Chart(c) => render(c, root),
+        Drawing::Heat(h) => render_heat(h, root),
+    }
+}
+
 /// Draws `chart` to `path` (.svg or .png), atomically.
 pub fn draw(chart: &Chart, path: &Path) -> Result<()> {
+    draw_any(&Drawing::Chart(chart), path)
+}
+
+/// Draws `heat` to `path` (.svg or .png), atomically.
+pub fn draw_heat_map(heat: &HeatMap, path: &Path) -> Result<()> {
+    draw_any(&Drawing::Heat(heat), path)
+}
+
+fn draw_any(d: &Drawing, path: &Path) -> Result<()> {
     font()?;
     match crate::files::extension(path).as_deref() {
         Some("svg") => {
             let mut svg = String::new();
             {
                 let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-                render(chart, &root)?;
+                render_any(d, &root)?;
                 root.present().map_err(|e| anyhow!("{e}"))?;
             }
             crate::files::write_bytes(&crate::files::Dest::File(path.into()), svg.as_bytes())
@@ -111,7 +148,7 @@ pub fn draw(chart: &Chart, path: &Path) -> Result<()> {
             let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
             {
                 let root = BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area();
-                render(chart, &root)?;
+                render_any(d, &root)?;
                 root.present().map_err(|e| anyhow!("{e}"))?;
             }
             let img = image::RgbImage::from_raw(SIZE.0, SIZE.1, buf).context("plot buffer size")?;
@@ -124,6 +161,88 @@ pub fn draw(chart: &Chart, path: &Path) -> Result<()> {
         }
         _ => bail!("{}: charts are written as .svg or .png", path.display()),
     }
+}
+
+/// The heat map: one cell per value, coloured on a log scale from the
+/// smallest (light) to the largest (dark), the value written in it; row
+/// names on the left, column names on top.
+fn render_heat<DB: DrawingBackend>(h: &HeatMap, root: &DrawingArea<DB, Shift>) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("cannot draw the heat map: {e}");
+    root.fill(&WHITE).map_err(e)?;
+    let (nr, nc) = (h.rows.len() as f64, h.columns.len() as f64);
+    let mut c = ChartBuilder::on(root)
+        .caption(&h.title, ("sans-serif", 22))
+        .margin(16)
+        .build_cartesian_2d(-1.0..nc, -1.0..nr + 1.0)
+        .map_err(e)?;
+    let vals: Vec<f64> = h.values.iter().flatten().flatten().copied().collect();
+    let lo = vals
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min)
+        .max(1e-12);
+    let hi = vals.iter().copied().fold(0.0, f64::max).max(lo * 1.0001);
+    let lut = nv_flip::magma_lut().to_vec();
+    let font = ("sans-serif", 15).into_font();
+    for (ri, row) in h.values.iter().enumerate() {
+        // Row 0 at the top.
+        let y = nr - 1.0 - ri as f64;
+        for (ci, v) in row.iter().enumerate() {
+            let x = ci as f64;
+            let (fill, text) = match v {
+                Some(v) => {
+                    let t = ((v / lo).ln() / (hi / lo).ln()).clamp(0.0, 1.0);
+                    // Light (best) to dark (worst) on the magma map.
+                    let k = ((1.0 - t) * 200.0 + 40.0).round() as usize * 3;
+                    (RGBColor(lut[k], lut[k + 1], lut[k + 2]), format!("{v:.2}"))
+                }
+                None => (RGBColor(220, 220, 220), "—".into()),
+            };
+            c.draw_series(std::iter::once(Rectangle::new(
+                [(x, y), (x + 1.0, y + 1.0)],
+                fill.filled(),
+            )))
+            .map_err(e)?;
+            let ink = if v.is_some_and(|v| ((v / lo).ln() / (hi / lo).ln()) > 0.5) {
+                WHITE
+            } else {
+                BLACK
+            };
+            c.draw_series(std::iter::once(Text::new(
+                text,
+                (x + 0.35, y + 0.6),
+                font.clone().color(&ink),
+            )))
+            .map_err(e)?;
+        }
+        c.draw_series(std::iter::once(Text::new(
+            h.rows[ri].clone(),
+            (-0.9, y + 0.6),
+            font.clone(),
+        )))
+        .map_err(e)?;
+    }
+    for (ci, name) in h.columns.iter().enumerate() {
+        c.draw_series(std::iter::once(Text::new(
+            name.clone(),
+            (ci as f64 + 0.35, nr + 0.4),
+            font.clone(),
+        )))
+        .map_err(e)?;
+    }
+    c.draw_series(std::iter::once(Text::new(
+        format!(
+            "{} across, {} down; cells: {}",
+            h.column_label, h.row_label, h.value_label
+        ),
+        (-0.9, -0.5),
+        font.clone(),
+    )))
+    .map_err(e)?;
+    Ok(())
 }
 
 /// The range of `v` padded for display; on log axes strictly positive.

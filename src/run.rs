@@ -155,7 +155,11 @@ pub fn render_packed(
         grid: packed.grid.clone(),
     };
     match choose(opts)? {
-        Chosen::Gpu(g) => match g.render(packed, &opts.gpu, progress) {
+        Chosen::Gpu(g) => match g.render(
+            packed,
+            &crate::profile::apply_saved(g.info(), &opts.gpu),
+            progress,
+        ) {
             Ok(frame) => Ok(done(frame, Used::Gpu, g.info().name.clone())),
             Err(e) if opts.backend == Backend::Auto && is_device_fault(&e) => {
                 log::warn!("{e}; finishing the render on the CPU mirror");

@@ -1362,3 +1362,99 @@ fn cli_pipeline_cache_env() {
         assert!(png.exists());
     }
 }
+
+/// `whitted profile`: every combination measured (the refused one with its
+/// reason), the best marked once, the phases printed, and `--save` makes
+/// `render` use the best shape unless a shape is given.
+#[test]
+fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let csv_path = dir.path().join("p.csv");
+    let svg = dir.path().join("p.svg");
+    let cache = dir.path().join("cache");
+    let o = whitted()
+        .env("XDG_CACHE_HOME", &cache)
+        .args([
+            "profile",
+            "scenes/showcase.toml",
+            "--width",
+            "48",
+            "--height",
+            "36",
+            "--workgroups",
+            "8x8,16x2,64x32",
+            "--tiles",
+            "16,full",
+            "--repeat",
+            "1",
+            "--save",
+            "--csv",
+        ])
+        .arg(&csv_path)
+        .arg("--plot")
+        .arg(&svg)
+        .assert()
+        .success();
+    let out = String::from_utf8_lossy(&o.get_output().stdout).into_owned();
+    for phase in [
+        "load", "pack", "pipeline", "upload", "dispatch", "readback", "output",
+    ] {
+        assert!(out.contains(phase), "no phase {phase} in:\n{out}");
+    }
+    let mut r = csv::Reader::from_path(&csv_path).unwrap();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    assert_eq!(rows.len(), 6);
+    assert_eq!(rows.iter().filter(|r| &r[8] == "true").count(), 1);
+    // 64×32 = 2048 invocations, over lavapipe's limit of 1024 (some GPUs
+    // allow it): where a device refuses a shape, the reason names its limit.
+    for row in &rows {
+        if !row[9].is_empty() {
+            assert!(row[9].contains("invocations"), "{:?}", row);
+        } else {
+            assert!(row[2].parse::<f64>().unwrap() > 0.0);
+        }
+    }
+    assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
+    let best = rows.iter().find(|r| &r[8] == "true").unwrap();
+    let (wg, tile) = (best[0].to_string(), best[1].to_string());
+    let saved: Vec<_> = std::fs::read_dir(cache.join("whitted/profiles"))
+        .unwrap()
+        .collect();
+    assert_eq!(saved.len(), 1);
+    let render = |extra: &[&str]| {
+        let o = whitted()
+            .env("XDG_CACHE_HOME", &cache)
+            .args([
+                "render",
+                "scenes/showcase.toml",
+                "--width",
+                "48",
+                "--height",
+                "36",
+                "--backend",
+                "gpu",
+                "-v",
+                "-o",
+            ])
+            .arg(dir.path().join("r.png"))
+            .args(extra)
+            .assert()
+            .success();
+        String::from_utf8_lossy(&o.get_output().stderr).into_owned()
+    };
+    let used = render(&[]);
+    let tile_shown = if tile == "full" {
+        "16384".to_string()
+    } else {
+        tile
+    };
+    assert!(
+        used.contains(&format!("dispatch shape {wg}, tile {tile_shown} from")),
+        "{used}"
+    );
+    let given = render(&["--workgroup", "8x4"]);
+    assert!(!given.contains("whitted profile --save"), "{given}");
+}

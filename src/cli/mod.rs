@@ -11,6 +11,7 @@ pub mod devices;
 pub mod export;
 pub mod generate;
 pub mod options;
+pub mod profile;
 pub mod reference;
 pub mod render;
 pub mod stability;
@@ -107,6 +108,14 @@ pub enum Command {
     ///
     /// Example: whitted stability -o docs/stability.md --pictures docs/stability
     Stability(stability::StabilityArgs),
+    /// Profile GPU dispatch shapes on one device: every workgroup shape ×
+    /// tile size, a warm-up each, then interleaved rounds; median, min and
+    /// max device time (timestamp queries), wall time and Mrays/s, sorted
+    /// with the best marked; the phases of one render; CSV and a heat map;
+    /// --save stores the best shape for `render` (docs/profiling.md).
+    ///
+    /// Example: whitted profile scenes/showcase.toml --width 320 --height 240 --plot shapes.svg
+    Profile(profile::ProfileArgs),
 }
 
 /// Global output settings every command sees.
@@ -136,6 +145,7 @@ pub fn run(cli: Cli) -> u8 {
         Command::Reference(a) => reference::run(a, ui),
         Command::Chart(a) => chart::run(a, ui),
         Command::Stability(a) => stability::run(a, ui),
+        Command::Profile(a) => profile::run(a, ui),
     };
     match r {
         Ok(code) => code,

@@ -120,13 +120,15 @@ pub struct GpuArgs {
     #[arg(long, value_name = "N")]
     pub device: Option<usize>,
     /// Edge of a GPU dispatch tile in lattice samples: one submission per
-    /// tile, so none runs long.
-    #[arg(long, value_name = "N", default_value_t = gpu::DEFAULT_TILE,
-          value_parser = clap::value_parser!(u32).range(1..=16384))]
-    pub tile: u32,
-    /// GPU workgroup shape (specialization constants of the shader).
-    #[arg(long, value_name = "WxH", default_value = "8x8", value_parser = parse_workgroup)]
-    pub workgroup: [u32; 2],
+    /// tile, so none runs long [default: 256, or the shape `whitted profile
+    /// --save` stored for the device when neither this nor --workgroup is
+    /// given; -v says so].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub tile: Option<u32>,
+    /// GPU workgroup shape (specialization constants of the shader)
+    /// [default: 8x8, or the saved shape as for --tile].
+    #[arg(long, value_name = "WxH", value_parser = parse_workgroup)]
+    pub workgroup: Option<[u32; 2]>,
     /// Where compiled GPU pipelines are cached (default: the
     /// WHITTED_PIPELINE_CACHE variable, else $XDG_CACHE_HOME/whitted or
     /// ~/.cache/whitted); `off`: no cache. A bad cache never fails a render.
@@ -158,8 +160,9 @@ impl GpuArgs {
         GpuOptions {
             device: self.device,
             real_gpu_only: false,
-            tile: self.tile,
-            workgroup: self.workgroup,
+            tile: self.tile.unwrap_or(gpu::DEFAULT_TILE),
+            workgroup: self.workgroup.unwrap_or(gpu::DEFAULT_WORKGROUP),
+            saved_shape: self.tile.is_none() && self.workgroup.is_none(),
             staging: false,
             pipeline_cache: match &self.pipeline_cache {
                 None => PipelineCache::Default,

@@ -171,6 +171,11 @@ pub struct DeviceInfo {
     pub kind: DeviceKind,
     /// Driver name and version string (VkPhysicalDeviceDriverProperties).
     pub driver: String,
+    /// VkPhysicalDeviceProperties::driverVersion (vendor-encoded).
+    pub driver_version: u32,
+    /// VkPhysicalDeviceIDProperties::deviceUUID as 32 hex digits: the key of
+    /// the saved dispatch shape (`whitted profile --save`).
+    pub uuid: String,
     pub api_version: String,
     pub vendor_id: u32,
     pub device_id: u32,
@@ -397,11 +402,12 @@ impl Instance {
         let api = props.api_version;
         let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut ids = vk::PhysicalDeviceIDProperties::default();
         let driver_known = api >= vk::API_VERSION_1_2;
         {
             let mut p2 = vk::PhysicalDeviceProperties2::default();
             if api >= vk::API_VERSION_1_1 {
-                p2 = p2.push_next(&mut subgroup);
+                p2 = p2.push_next(&mut subgroup).push_next(&mut ids);
                 if driver_known {
                     p2 = p2.push_next(&mut driver);
                 }
@@ -462,6 +468,8 @@ impl Instance {
             name,
             kind: DeviceKind::of(props.device_type),
             driver: driver_s,
+            driver_version: props.driver_version,
+            uuid: ids.device_uuid.iter().map(|b| format!("{b:02x}")).collect(),
             api_version: version_string(api),
             vendor_id: props.vendor_id,
             device_id: props.device_id,

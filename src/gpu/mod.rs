@@ -382,6 +382,10 @@ pub struct GpuOptions {
     pub pipeline_cache: PipelineCache,
     /// Which render kernel: exact (`precise`, the default) or fast.
     pub math: GpuMath,
+    /// Neither `--workgroup` nor `--tile` was given: `render` may use the
+    /// shape `whitted profile --save` stored for the device
+    /// (`profile::apply_saved`).
+    pub saved_shape: bool,
 }
 
 impl Default for GpuOptions {
@@ -396,6 +400,7 @@ impl Default for GpuOptions {
             fault: None,
             fence_timeout: None,
             pipeline_cache: PipelineCache::Default,
+            saved_shape: false,
             math: GpuMath::Exact,
         }
     }
@@ -762,6 +767,12 @@ impl Gpu {
         let out_bytes = n * 16;
         self.check_fits(packed, n)?;
         self.check_loops(packed)?;
+        let mut phases: Vec<(&'static str, f64)> = Vec::new();
+        let mut clock = Instant::now();
+        let mut lap = |phases: &mut Vec<(&'static str, f64)>, what: &'static str| {
+            phases.push((what, clock.elapsed().as_secs_f64()));
+            clock = Instant::now();
+        };
         let kernel = self.kernel(
             name,
             spirv,
@@ -773,6 +784,7 @@ impl Gpu {
                 (2, g.trace[1]),
             ],
         )?;
+        lap(&mut phases, "pipeline");
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, opts.staging)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
@@ -781,6 +793,7 @@ impl Gpu {
         binds.push((7, &samples));
         binds.push((8, &counters));
         kernel.bind(&binds)?;
+        lap(&mut phases, "upload");
 
         if !kernel
             .warmed
@@ -800,6 +813,7 @@ impl Gpu {
                 )
             })?;
         }
+        lap(&mut phases, "warm-up");
         let spp = if corners { 1 } else { g.image[2] };
         let max_samples = dispatch::max_tile_samples(g.trace[0], g.counts[2], MAX_TILE_SAMPLES);
         let tiles = dispatch::tiles(lw, lh, opts.tile, spp, max_samples);
@@ -850,6 +864,7 @@ impl Gpu {
             }
             progress(k as u64 + 1, tiles.len() as u64);
         }
+        lap(&mut phases, "dispatch");
         let raw = samples.read(out_bytes as usize)?;
         let lattice: Vec<[f32; 3]> = raw
             .chunks_exact(16)
@@ -871,6 +886,10 @@ impl Gpu {
             work: Default::default(),
             seconds: t0.elapsed().as_secs_f64(),
             device_seconds,
+            phases: {
+                lap(&mut phases, "readback");
+                phases
+            },
         })
     }
 

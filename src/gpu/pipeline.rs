@@ -350,6 +350,8 @@ mod tests {
             name: "test device".into(),
             kind: DeviceKind::Cpu,
             driver: String::new(),
+            driver_version: 1,
+            uuid: "00".repeat(16),
             api_version: "1.3.0".into(),
             vendor_id: 0x10005,
             device_id: 7,
