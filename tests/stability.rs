@@ -92,9 +92,21 @@ fn far_from_the_origin_the_image_holds() {
             r.psnr,
             origin.psnr
         );
-        // The GPU renders the same image.
-        if let Some(same) = r.gpu_same {
-            assert!(same, "10^{}: the GPU differs from the CPU", r.k);
+        // The GPU renders the same image: bit for bit on a CPU device;
+        // within 1 dB of the CPU's PSNR on a GPU (division and sqrt may
+        // differ by an ULP, docs/gpu.md).
+        let exact = common::gpu().is_some_and(|g| g.info().kind == whitted::gpu::DeviceKind::Cpu);
+        if let (Some(same), Some(pg)) = (r.gpu_same, r.psnr_gpu) {
+            if exact {
+                assert!(same, "10^{}: the GPU differs from the CPU", r.k);
+            } else {
+                assert!(
+                    (pg - r.psnr).abs() < 1.0,
+                    "10^{}: GPU {pg:.2} dB, CPU {:.2} dB",
+                    r.k,
+                    r.psnr
+                );
+            }
         }
     }
     assert_eq!(d.rows.last().unwrap().k, 11);
