@@ -93,6 +93,23 @@ pub struct Output<'a> {
     pub stdout: bool,
 }
 
+impl<'a> Output<'a> {
+    /// The output an optional flag names, if it was given.
+    pub fn optional(
+        flag: &'a str,
+        path: &'a Option<std::path::PathBuf>,
+        extensions: &'a [&'a str],
+        stdout: bool,
+    ) -> Option<Output<'a>> {
+        path.as_deref().map(|path| Output {
+            flag,
+            path,
+            extensions,
+            stdout,
+        })
+    }
+}
+
 /// The lower-case extension of `p`.
 pub fn extension(p: &Path) -> Option<String> {
     p.extension()

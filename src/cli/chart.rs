@@ -58,22 +58,8 @@ pub fn run(a: ChartArgs, ui: Ui) -> Result<u8> {
         extensions: &["svg", "png"],
         stdout: false,
     }];
-    if let Some(p) = &a.png {
-        outputs.push(Output {
-            flag: "--png",
-            path: p,
-            extensions: &["png"],
-            stdout: false,
-        });
-    }
-    if let Some(p) = &a.csv {
-        outputs.push(Output {
-            flag: "--csv",
-            path: p,
-            extensions: &["csv"],
-            stdout: true,
-        });
-    }
+    outputs.extend(Output::optional("--png", &a.png, &["png"], false));
+    outputs.extend(Output::optional("--csv", &a.csv, &["csv"], true));
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
     let scene = super::load_scene(ui, &a.scene)?;
     let mut reference = super::reference::ref_settings(&scene, &a.size, a.reference_spp, None);

@@ -46,23 +46,13 @@ pub struct ProfileArgs {
 }
 
 pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
-    let mut outputs = Vec::new();
-    if let Some(p) = &a.csv {
-        outputs.push(Output {
-            flag: "--csv",
-            path: p,
-            extensions: &["csv"],
-            stdout: true,
-        });
-    }
-    if let Some(p) = &a.plot {
-        outputs.push(Output {
-            flag: "--plot",
-            path: p,
-            extensions: &["svg", "png"],
-            stdout: false,
-        });
-    }
+    let outputs: Vec<Output> = [
+        Output::optional("--csv", &a.csv, &["csv"], true),
+        Output::optional("--plot", &a.plot, &["svg", "png"], false),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
     let t = Instant::now();
     let scene = super::load_scene(ui, &a.scene)?;

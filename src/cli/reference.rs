@@ -73,18 +73,10 @@ pub fn ref_settings(
 }
 
 pub fn run(a: ReferenceArgs, ui: Ui) -> Result<u8> {
-    if let Some(o) = &a.output {
-        files::check_outputs(
-            &[Output {
-                flag: "-o",
-                path: o,
-                extensions: &["exr", "hdr", "png"],
-                stdout: false,
-            }],
-            &[&a.scene],
-        )
-        .map_err(user)?;
-    }
+    let outputs: Vec<Output> = Output::optional("-o", &a.output, &["exr", "hdr", "png"], false)
+        .into_iter()
+        .collect();
+    files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
     let scene = super::load_scene(ui, &a.scene)?;
     let rs = ref_settings(&scene, &a.size, a.spp, a.max_depth);
     let cache = cache_of(&a.cache);

@@ -36,23 +36,13 @@ pub struct StabilityArgs {
 }
 
 pub fn run(a: StabilityArgs, ui: Ui) -> Result<u8> {
-    let mut outputs = Vec::new();
-    if let Some(o) = &a.output {
-        outputs.push(Output {
-            flag: "-o",
-            path: o,
-            extensions: &["md"],
-            stdout: true,
-        });
-    }
-    if let Some(c) = &a.csv {
-        outputs.push(Output {
-            flag: "--csv",
-            path: c,
-            extensions: &["csv"],
-            stdout: true,
-        });
-    }
+    let outputs: Vec<Output> = [
+        Output::optional("-o", &a.output, &["md"], true),
+        Output::optional("--csv", &a.csv, &["csv"], true),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     files::check_outputs(&outputs, &[]).map_err(user)?;
     if let Some(d) = &a.pictures {
         std::fs::create_dir_all(d)
