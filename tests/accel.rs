@@ -466,7 +466,7 @@ fn check_feelers(p: &Packed, points: &[[f32; 3]]) -> Result<(), TestCaseError> {
         for o in origins {
             let lv = lp - o;
             let dist = lv.length();
-            if !(dist > 0.0) {
+            if dist.is_nan() || dist <= 0.0 {
                 continue;
             }
             let d = lv / dist;

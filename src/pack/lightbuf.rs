@@ -38,6 +38,9 @@ pub fn cells(lights: usize, res: u32) -> u64 {
     lights as u64 * 6 * res as u64 * res as u64
 }
 
+/// The cell rectangles of one primitive (`None`: every cell).
+type Filed = (u32, Option<Vec<(usize, [u32; 4])>>);
+
 /// A built light buffer.
 #[derive(Clone, Debug, Default)]
 pub struct LightBuf {
@@ -123,7 +126,7 @@ pub fn build(
     let per_light = 6 * (res as usize) * (res as usize);
     let ncells = lights.len() * per_light;
     // Per light, in parallel: the cell rectangles of every primitive.
-    let filed: Vec<Vec<(u32, Option<Vec<(usize, [u32; 4])>>)>> = lights
+    let filed: Vec<Vec<Filed>> = lights
         .par_iter()
         .map(|&l| {
             let rho = widening(l, eps, scale);
