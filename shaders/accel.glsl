@@ -8,6 +8,7 @@
 
 #include "grid.glsl"
 #include "bvh.glsl"
+#include "lightbuf.glsl"
 
 // Runs query q: the unbounded primitives, then the structure in use.
 void accel_traverse(Ray ray, RayPre pre, inout Query q) {
@@ -38,8 +39,12 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
 
 // Light reaching the end of a shadow feeler of length dist: every primitive
 // crossing it multiplies by its k_t (opaque ones give zero). Shadow feelers
-// are not refracted. `light` indexes the shadow cache (>= SHADOW_CACHE_LIGHTS:
-// none), whose primitive is tested first.
+// are not refracted. `light` is the light the feeler goes to (>= the light
+// count: none); it indexes the shadow cache (>= SHADOW_CACHE_LIGHTS: none),
+// whose primitive is tested first, and, when the scene carries light
+// buffers (g.flags.w > 0), the light buffer whose cell lists the primitives
+// to test. A feeler whose origin is the light's position walks the
+// structure instead.
 vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     uint cached = light < SHADOW_CACHE_LIGHTS ? shadow_cache[light] : 0u;
     if (cached != 0u) {
@@ -49,7 +54,18 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
         }
     }
     Query q = query_shadow(dist, light);
-    accel_traverse(ray, pre, q);
+    uint res = g.flags.w;
+    uint cell = 0u;
+    bool use_lb = false;
+    if (res > 0u && light < g.counts.z) {
+        PRECISE vec3 c = ray.o - lights[light].pos.xyz;
+        use_lb = lightbuf_cell(res, light, c, cell);
+    }
+    if (use_lb) {
+        lightbuf_traverse(ray, pre, q, cell);
+    } else {
+        accel_traverse(ray, pre, q);
+    }
     return q.done ? vec3(0.0) : q.trans;
 }
 

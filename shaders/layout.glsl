@@ -21,7 +21,8 @@ struct Globals {
     uvec4 image;      // x: width, y: height, z: samples per pixel, w: sampling mode
     uvec4 trace;      // x: max depth, y: feature bits, z, w: strata in x, y
     vec4 params;      // x: min weight, y: surface offset
-    uvec4 flags;      // x: counting flags (FLAG_*), y: ACCEL_*, z: BVH interior nodes
+    uvec4 flags;      // x: counting flags (FLAG_*), y: ACCEL_*, z: BVH interior nodes,
+                      // w: light buffer resolution (0: none)
 };
 
 // One primitive, 64 bytes; kind_mat = kind (low 4 bits) | material << 4.
@@ -74,6 +75,10 @@ layout(set = 0, binding = 5, std430) readonly buffer CellStartBuf { uint cell_st
 layout(set = 0, binding = 6, std430) readonly buffer RefsBuf { uint refs[]; };
 // Binding 11 (7 to 10 are the kernels' own): the BVH, when it is in use.
 layout(set = 0, binding = 11, std430) readonly buffer BvhBuf { BvhChild bvh[]; };
+// Bindings 12 and 13: the light buffers' cell offsets and primitive lists
+// (src/pack/lightbuf.rs), when g.flags.w > 0.
+layout(set = 0, binding = 12, std430) readonly buffer LbStartBuf { uint lb_start[]; };
+layout(set = 0, binding = 13, std430) readonly buffer LbRefsBuf { uint lb_refs[]; };
 
 uvec3 cell_unpack(uint c) { return uvec3(c & 1023u, (c >> 10) & 1023u, (c >> 20) & 1023u); }
 

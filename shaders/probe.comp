@@ -86,7 +86,7 @@ void main() {
     }
     case PROBE_TRANSMITTANCE: {
         RayPre pre = ray_pre(ray.d);
-        res.a = vec4(transmittance(ray, pre, tmax, SHADOW_CACHE_LIGHTS), 0.0);
+        res.a = vec4(transmittance(ray, pre, tmax, 0xFFFFFFFFu), 0.0);
         break;
     }
     case PROBE_REFRACT: {

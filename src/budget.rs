@@ -556,7 +556,7 @@ impl Need {
 /// output samples (one vec4 each), in binding order (the BVH's is 11);
 /// the GPU checks each against `maxStorageBufferRange` and their sum
 /// against its heap.
-pub fn gpu_buffers(p: &crate::pack::Packed, lattice: u64) -> [(&'static str, u64); 9] {
+pub fn gpu_buffers(p: &crate::pack::Packed, lattice: u64) -> [(&'static str, u64); 11] {
     fn size<T>(s: &[T]) -> u64 {
         std::mem::size_of_val(s) as u64
     }
@@ -569,6 +569,8 @@ pub fn gpu_buffers(p: &crate::pack::Packed, lattice: u64) -> [(&'static str, u64
         ("cell_start", size(&p.cell_start)),
         ("refs", size(&p.refs)),
         ("bvh", size(&p.bvh)),
+        ("lb_start", size(&p.lb_start)),
+        ("lb_refs", size(&p.lb_refs)),
         ("output samples", lattice.saturating_mul(16)),
     ]
 }

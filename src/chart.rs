@@ -223,6 +223,7 @@ impl Plan {
             accel: c.accel,
             budget: self.budget,
             offset: None,
+            shadows: crate::pack::Shadows::Plain,
         }
     }
 }

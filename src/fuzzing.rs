@@ -371,6 +371,7 @@ fn small_settings() -> Settings {
         accel: Accel::Auto,
         budget: Budget::bytes(MEMORY_LIMIT),
         offset: None,
+        shadows: crate::pack::Shadows::Plain,
     }
 }
 
@@ -623,6 +624,7 @@ impl RenderSpec {
             },
             budget: Budget::bytes(MEMORY_LIMIT),
             offset: None,
+            shadows: crate::pack::Shadows::Plain,
         }
     }
 }

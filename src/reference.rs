@@ -66,6 +66,7 @@ impl RefSettings {
             accel: Accel::Auto,
             budget,
             offset: None,
+            shadows: crate::pack::Shadows::Plain,
         }
     }
 }

@@ -18,7 +18,7 @@
 use glam::DVec3;
 use proptest::prelude::*;
 use std::path::PathBuf;
-use whitted::pack::{self, Accel, Packed, Settings};
+use whitted::pack::{self, Accel, Packed, Settings, Shadows};
 use whitted::scene::{Camera, Light, Material, Object, Scene, Shape};
 use whitted::trace::accel::{closest_hit, closest_hit_brute, transmittance, transmittance_brute};
 use whitted::trace::intersect::RayPre;
@@ -370,4 +370,172 @@ fn axis_parallel_rays_equal_brute_force() {
     for accel in [Accel::Grid, Accel::Bvh] {
         check_against_brute(&pack_with(&s, accel), &rays).unwrap();
     }
+}
+
+/// `random_scene` with five more lights: one at a primitive's centre
+/// (inside its bounds), one inside a glass sphere added around it, one
+/// at the corner of a primitive's bounds, one among the primitives and
+/// one far off. Light positions are integers and the camera sits at an
+/// integer point, so the packed (camera-relative) positions are exact
+/// and feelers can be aimed along exact cube diagonals and cell
+/// boundaries.
+fn scene_with_lights(seed: u64, count: usize, clustered: bool) -> Scene {
+    let mut s = random_scene(seed, count, clustered);
+    let light = |p: DVec3| Light {
+        position: p,
+        color: DVec3::splat(0.3),
+        falloff: [1.0, 0.0, 0.0],
+    };
+    let inside = match s.objects.get(1).map(|o| &o.shape) {
+        Some(Shape::Sphere { center, .. }) => center.round(),
+        Some(Shape::Box { min, .. }) => min.ceil(),
+        _ => v(1.0, 1.0, 1.0),
+    };
+    s.objects.push(Object {
+        shape: Shape::Sphere {
+            center: v(-2.0, 3.0, 1.0),
+            radius: 1.5,
+        },
+        material: 2,
+    });
+    s.lights.extend([
+        light(inside),
+        light(v(-2.0, 3.0, 1.0)),
+        light(v(-1.0, 1.0, 4.0)),
+        light(v(0.0, 0.0, 0.0)),
+        light(v(40.0, -30.0, 25.0)),
+    ]);
+    s
+}
+
+fn pack_lb(s: &Scene, accel: Accel) -> Packed {
+    let p = pack::pack(
+        s,
+        &Settings {
+            accel,
+            shadows: Shadows::LightBuffer,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(p.structure(), accel);
+    assert!(p.globals.flags[3] > 0, "no light buffer was built");
+    assert_eq!(
+        p.lb_start.len() as u32,
+        p.globals.flags[3].pow(2) * 6 * p.globals.counts[2] + 1
+    );
+    p
+}
+
+/// Feelers towards each light of a light-buffered scene against brute
+/// force: from random points, and from points placed so that the
+/// direction from the light lies exactly on a cube diagonal (|x| = |y|,
+/// |x| = |y| = |z|) or on a cell boundary of the light buffer.
+fn check_feelers(p: &Packed, points: &[[f32; 3]]) -> Result<(), TestCaseError> {
+    let s = SceneView::new(p);
+    let res = p.globals.flags[3] as i32;
+    for (li, l) in p.lights.iter().enumerate() {
+        let lp = V3::of(&l.pos);
+        let mut origins: Vec<V3<f32>> = points.iter().map(|o| v3(o[0], o[1], o[2])).collect();
+        // Diagonals and cell boundaries: c = (a, b, e) with |a| dominant
+        // and b = a·(2j/res − 1) exactly (a = res/2·k).
+        for k in [1i32, 3] {
+            let a = (res / 2 * k) as f32;
+            for j in [0, 1, res / 2, res - 1, res] {
+                let b = (2 * j - res) as f32 * k as f32 / 2.0;
+                for (x, y, z) in [
+                    (a, b, b),
+                    (a, a, b),
+                    (b, a, a),
+                    (a, b, -a),
+                    (-a, -a, -a),
+                    (a, a, a),
+                ] {
+                    for perm in 0..3 {
+                        let c = match perm {
+                            0 => v3(x, y, z),
+                            1 => v3(z, x, y),
+                            _ => v3(y, z, x),
+                        };
+                        origins.push(lp + c * 0.125);
+                        origins.push(lp + c);
+                    }
+                }
+            }
+        }
+        for o in origins {
+            let lv = lp - o;
+            let dist = lv.length();
+            if dist.is_nan() || dist <= 0.0 {
+                continue;
+            }
+            let d = lv / dist;
+            let ray = Ray { o, d };
+            let pre = RayPre::new(d, true);
+            let mut work = Work::default();
+            let ta = transmittance(&s, &ray, &pre, dist, li, &mut work);
+            let tb = transmittance_brute(&s, &ray, &pre, dist);
+            prop_assert_eq!(ta, tb, "light {} at {:?}, feeler from {:?}", li, lp, o);
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// Shadow feelers through the light buffers equal brute force, with
+    /// either structure (their unbounded primitives and order differ), on
+    /// random scenes with lights inside and at the corner of primitives'
+    /// bounds.
+    #[test]
+    fn light_buffer_feelers_equal_brute_force(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        bvh: bool,
+        points in prop::collection::vec(prop::array::uniform3(-12.0f32..12.0), 24),
+    ) {
+        let s = scene_with_lights(seed, count, clustered);
+        let accel = if bvh { Accel::Bvh } else { Accel::Grid };
+        check_feelers(&pack_lb(&s, accel), &points)?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(16))]
+
+    /// `--shadows lightbuffer` renders the plain image bit for bit, with
+    /// the same ray counts, and tests fewer primitives for its feelers.
+    #[test]
+    fn light_buffers_render_the_same_image(
+        seed in 0u64..1000,
+        count in 1usize..400,
+        clustered: bool,
+        bvh: bool,
+    ) {
+        let s = scene_with_lights(seed, count, clustered);
+        let accel = if bvh { Accel::Bvh } else { Accel::Grid };
+        let plain = whitted::cpu::render(&pack_with(&s, accel), &|_, _| {});
+        let lb = whitted::cpu::render(&pack_lb(&s, accel), &|_, _| {});
+        prop_assert!(plain.stats.shadow > 0);
+        prop_assert_eq!(plain.stats, lb.stats);
+        let differ = plain.pixels.iter().zip(&lb.pixels).filter(|(x, y)| x != y).count();
+        prop_assert_eq!(differ, 0, "{} of {} pixels differ", differ, plain.pixels.len());
+    }
+}
+
+/// The light buffer lists far fewer primitives per feeler than there are
+/// (it prunes), and the light inside a primitive's bounds lists that
+/// primitive in every cell.
+#[test]
+fn light_buffer_cells_prune() {
+    let s = scene_with_lights(7, 600, false);
+    let p = pack_lb(&s, Accel::Grid);
+    let cells = p.lb_start.len() - 1;
+    let mean = p.lb_refs.len() as f64 / cells as f64;
+    let n = p.globals.counts[0] as f64;
+    assert!(mean < n / 4.0, "{mean} refs per cell of {n} primitives");
+    assert_eq!(p.lightbuf.cells, cells);
+    assert_eq!(p.lightbuf.refs, p.lb_refs.len());
 }

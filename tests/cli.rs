@@ -144,6 +144,49 @@ fn corner_sampling_renders() {
     assert_eq!(j["rays"]["eye"], 33 * 25);
 }
 
+/// `--shadows lightbuffer` renders the plain image byte for byte and says
+/// so in `--stats`; anything else is a usage error (exit 2) naming the
+/// values.
+#[test]
+fn shadows_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "s.toml", SCENE);
+    let mut images = Vec::new();
+    for mode in ["plain", "lightbuffer"] {
+        let out = dir.path().join(format!("{mode}.png"));
+        let stats = dir.path().join(format!("{mode}.json"));
+        whitted()
+            .args(["render", "-q", "--backend", "cpu", "--shadows", mode])
+            .arg(&scene)
+            .arg("-o")
+            .arg(&out)
+            .arg("--stats")
+            .arg(&stats)
+            .assert()
+            .success();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        assert_eq!(j["shadows"], mode, "{j}");
+        let cells = j["light_buffer"]["cells"].as_u64().unwrap();
+        assert_eq!(cells > 0, mode == "lightbuffer", "{j}");
+        images.push(std::fs::read(&out).unwrap());
+    }
+    assert_eq!(images[0], images[1]);
+    let a = whitted()
+        .args(["render", "--shadows", "bogus"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("x.png"))
+        .assert()
+        .code(2);
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(
+        err.contains("bogus") && err.contains("plain") && err.contains("lightbuffer"),
+        "{err}"
+    );
+    assert!(!dir.path().join("x.png").exists());
+}
+
 /// `--gpu-math`: `fast` is a value render takes (with the CPU backend it
 /// changes nothing and says so); anything else is a usage error (exit 2)
 /// naming the values.

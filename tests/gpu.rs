@@ -20,7 +20,7 @@ use whitted::gpu::{
 };
 use whitted::metrics::{self, Tolerance};
 use whitted::pack::layout::{BvhChild, Globals, Light, Material, Prim};
-use whitted::pack::{Accel, Packed, Sampling, Settings};
+use whitted::pack::{Accel, Packed, Sampling, Settings, Shadows};
 
 // ------------------------------------------------------------ SPIR-V layout
 
@@ -197,6 +197,8 @@ fn shader_layout_matches_rust() {
             (4, "Light", size_of::<Light>()),
             (5, "", 4),
             (6, "", 4),
+            (12, "", 4),
+            (13, "", 4),
         ];
         for (b, elem, stride) in arrays {
             let (e, s) = r.binding_array(b);
@@ -340,6 +342,42 @@ fn every_scene_matches_the_cpu_mirror() {
             };
             let name = format!("{} {accel:?}", path.file_name().unwrap().to_string_lossy());
             assert_close(&name, &c, &g);
+            if common::gpu().is_some_and(|d| d.info().kind == DeviceKind::Cpu) {
+                assert_eq!(c.stats, g.stats, "{name}: ray counts");
+            }
+        }
+    }
+}
+
+/// With light buffers (bindings 12 and 13), every bundled scene and the
+/// SPD's gears render on the GPU as on the CPU mirror (bit for bit on
+/// lavapipe), and as plain shadow feelers do.
+#[test]
+fn light_buffers_match_the_cpu_mirror() {
+    let mut packs: Vec<(String, Settings, whitted::scene::Scene)> = Vec::new();
+    for path in scene_files() {
+        let s = whitted::scene::load(&path).unwrap();
+        packs.push((path.display().to_string(), common::small(64, 48), s));
+    }
+    let gears = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Gears, Some(2)).unwrap();
+    packs.push(("gears".into(), common::small(64, 64), gears));
+    for (name, base, scene) in packs {
+        for accel in [Accel::Grid, Accel::Bvh] {
+            let settings = |shadows| Settings {
+                accel,
+                shadows,
+                ..base.clone()
+            };
+            let p = whitted::pack::pack(&scene, &settings(Shadows::LightBuffer)).unwrap();
+            assert!(p.globals.flags[3] > 0, "{name}: no light buffer");
+            let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
+                return;
+            };
+            let name = format!("{name} {accel:?} lightbuffer");
+            assert_close(&name, &c, &g);
+            let plain = whitted::pack::pack(&scene, &settings(Shadows::Plain)).unwrap();
+            let pc = cpu::render(&plain, &|_, _| {});
+            assert_eq!(pc.pixels, c.pixels, "{name}: plain and light buffer");
             if common::gpu().is_some_and(|d| d.info().kind == DeviceKind::Cpu) {
                 assert_eq!(c.stats, g.stats, "{name}: ray counts");
             }

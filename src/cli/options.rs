@@ -1,7 +1,7 @@
 //! Options shared by `render` and `validate`, and their parsers.
 
 use crate::gpu::{self, GpuMath, GpuOptions, PipelineCache};
-use crate::pack::{Accel, Counting, Preset, Sampling, Settings};
+use crate::pack::{Accel, Counting, Preset, Sampling, Settings, Shadows};
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -68,6 +68,15 @@ pub struct RenderOpts {
     /// --grid: grid].
     #[arg(long, value_enum)]
     pub accel: Option<Accel>,
+    /// How shadow feelers find their blockers: through the acceleration
+    /// structure like every ray (plain), or through a light buffer per
+    /// light, a direction cube whose cells list the primitives a feeler
+    /// in that direction can meet (lightbuffer; built at pack time, falls
+    /// back to plain when over the memory budget). Both give the same
+    /// image, bit for bit; which is faster depends on the scene
+    /// (docs/method.md, "Light buffers") [default: plain].
+    #[arg(long, value_enum)]
+    pub shadows: Option<Shadows>,
     /// Memory the run may use: a size (512M, 4GiB, 1.5G; K/M/G/T are
     /// powers of 1024, KB/MB/GB/TB of 1000) or a share of physical memory
     /// (75%). A run whose estimate is over it is refused before anything
@@ -97,6 +106,7 @@ impl RenderOpts {
             accel: self.accel.unwrap_or(base.accel),
             budget: self.memory_limit.unwrap_or(base.budget),
             offset: None,
+            shadows: self.shadows.unwrap_or(base.shadows),
         }
     }
 

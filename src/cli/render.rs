@@ -150,6 +150,8 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "build_seconds": packed.grid.seconds,
                 "duplicates": packed.grid.duplicates,
             },
+            "shadows": if packed.globals.flags[3] > 0 { "lightbuffer" } else { "plain" },
+            "light_buffer": packed.lightbuf,
         });
         files::write_bytes(
             &Dest::new(path),

@@ -481,13 +481,14 @@ pub fn probe(
     Gpu::new(&GpuOptions::default())?.probe(packed, mode, items)
 }
 
-/// The packed arrays on the device: bindings 0–6 and 11 (the BVH).
+/// The packed arrays on the device: bindings 0–6, 11 (the BVH), 12 and 13
+/// (the light buffers).
 struct SceneBuffers {
     bufs: Vec<(u32, Buffer)>,
 }
 
 /// The scene's bindings (`layout.glsl`); 7 to 10 are the kernels' own.
-const SCENE_BINDINGS: [u32; 8] = [0, 1, 2, 3, 4, 5, 6, 11];
+const SCENE_BINDINGS: [u32; 10] = [0, 1, 2, 3, 4, 5, 6, 11, 12, 13];
 
 impl SceneBuffers {
     fn bindings(&self) -> Vec<(u32, &Buffer)> {
@@ -633,6 +634,7 @@ impl Gpu {
                 let hint = match name {
                     "output samples" => "render a smaller image",
                     "cell_start" | "refs" => "choose a coarser --grid or --accel bvh",
+                    "lb_start" | "lb_refs" => "use --shadows plain",
                     _ => "simplify the scene",
                 };
                 return Err(GpuError::Limits(format!(
@@ -672,6 +674,8 @@ impl Gpu {
             b("cell_start", bytemuck::cast_slice(&p.cell_start))?,
             b("refs", bytemuck::cast_slice(&p.refs))?,
             b("bvh", bytemuck::cast_slice(&p.bvh))?,
+            b("lb_start", bytemuck::cast_slice(&p.lb_start))?,
+            b("lb_refs", bytemuck::cast_slice(&p.lb_refs))?,
         ];
         Ok(SceneBuffers {
             bufs: SCENE_BINDINGS.into_iter().zip(bufs).collect(),
@@ -776,7 +780,7 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &[0, 1, 2, 3, 4, 5, 6, 7, 8, 11],
+            &[0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 13],
             std::mem::size_of::<RenderPush>() as u32,
             &[
                 (0, opts.workgroup[0]),
@@ -919,7 +923,7 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &[0, 1, 2, 3, 4, 5, 6, 9, 10, 11],
+            &[0, 1, 2, 3, 4, 5, 6, 9, 10, 11, 12, 13],
             std::mem::size_of::<ProbePush>() as u32,
             &[],
         )?;

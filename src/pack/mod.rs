@@ -4,6 +4,7 @@
 pub mod bvh;
 pub mod grid;
 pub mod layout;
+pub mod lightbuf;
 pub mod pages;
 pub mod polygon;
 
@@ -42,6 +43,21 @@ pub enum Accel {
     Auto,
 }
 
+/// How shadow feelers find their blockers (`--shadows`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Shadows {
+    /// Through the acceleration structure, like every other ray.
+    #[default]
+    Plain,
+    /// Through a light buffer per light: a direction cube whose cells list
+    /// the primitives a feeler in that direction can meet (docs/method.md,
+    /// "Light buffers"). Same images, bit for bit.
+    #[value(name = "lightbuffer")]
+    #[serde(rename = "lightbuffer")]
+    LightBuffer,
+}
+
 /// The render settings that shape the packed data.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
@@ -62,6 +78,8 @@ pub struct Settings {
     /// The surface offset ε of secondary rays relative to the scene's
     /// size; None: `EPS_OFFSET_REL` (`whitted stability` sweeps it).
     pub offset: Option<f32>,
+    /// `--shadows`: how shadow feelers find their blockers.
+    pub shadows: Shadows,
 }
 
 impl Default for Settings {
@@ -77,6 +95,7 @@ impl Default for Settings {
             accel: Accel::Auto,
             budget: Budget::system(),
             offset: None,
+            shadows: Shadows::Plain,
         }
     }
 }
@@ -171,6 +190,7 @@ impl Preset {
                 accel: Accel::Auto,
                 budget: Budget::system(),
                 offset: None,
+                shadows: Shadows::Plain,
             },
         }
     }
@@ -214,6 +234,17 @@ pub struct GridInfo {
     pub seconds: f64,
 }
 
+/// What the light buffers cost (`--stats`); all zero without them.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct LightBufInfo {
+    /// Cells along a face's side (0: no light buffer).
+    pub res: u32,
+    pub cells: usize,
+    pub refs: usize,
+    pub bytes: usize,
+    pub build_seconds: f64,
+}
+
 /// The packed scene: exactly the buffers the shader binds.
 #[derive(Clone, Debug, Default)]
 pub struct Packed {
@@ -227,6 +258,11 @@ pub struct Packed {
     pub refs: Pages<u32>,
     /// Two entries per interior node (`BvhChild`); empty with the grid.
     pub bvh: Pages<BvhChild>,
+    /// Light buffers (`lightbuf`): `cells + 1` offsets into `lb_refs`, and
+    /// the primitive indices; empty without them (`globals.flags.w` = 0).
+    pub lb_start: Pages<u32>,
+    pub lb_refs: Pages<u32>,
+    pub lightbuf: LightBufInfo,
     pub grid: GridInfo,
     pub accel: AccelInfo,
 }
@@ -912,7 +948,6 @@ pub fn pack_with_progress(
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
         let tree = bvh::build(&bounds, progress);
-        drop(bounds);
         // Leaf order: each leaf a contiguous run of primitives.
         for &i in &tree.order {
             prims.push(b.bounded[i as usize].0);
@@ -943,7 +978,6 @@ pub fn pack_with_progress(
                 });
             }
         };
-        drop(bounds);
         for (i, (mut p, _)) in b.bounded.iter().copied().enumerate() {
             (p.cell_lo, p.cell_hi) = g.ranges[i];
             prims.push(p);
@@ -982,6 +1016,41 @@ pub fn pack_with_progress(
             .fold(0.0f64, f64::max);
         finite.diagonal().max(far)
     };
+    let eps = (scale * settings.offset.unwrap_or(EPS_OFFSET_REL) as f64) as f32;
+    // Light buffers over the finite primitives in `prims` order.
+    let mut lb = lightbuf::LightBuf::default();
+    let mut lb_seconds = 0.0;
+    if settings.shadows == Shadows::LightBuffer && n_bounded > 0 && !lights.is_empty() {
+        let t = Instant::now();
+        let ordered: Vec<Bounds> = if need.bvh {
+            tree.order.iter().map(|&i| bounds[i as usize]).collect()
+        } else {
+            bounds.clone()
+        };
+        let now = Need {
+            cells: grid::cells_of(g.dims),
+            refs: g.refs.len() as u64,
+            ..need
+        };
+        let room = budget.limit().saturating_sub(now.peak()) / 4;
+        let res = lightbuf::resolution(ordered.len());
+        let cells = lightbuf::cells(lights.len(), res);
+        let max_refs = room.saturating_sub(cells + 1);
+        let at: Vec<[f64; 3]> = scene
+            .lights
+            .iter()
+            .map(|l| (l.position - origin).to_array())
+            .collect();
+        match lightbuf::build(&at, &ordered, eps as f64, scale, max_refs) {
+            Some(built) => lb = built,
+            None => log::info!(
+                "the light buffers do not fit the memory budget (or 32-bit offsets); \
+                 shadow feelers use the acceleration structure"
+            ),
+        }
+        lb_seconds = t.elapsed().as_secs_f64();
+    }
+    drop(bounds);
     let (nx, ny) = crate::trace::sample::strata(settings.spp);
     let sampling = match settings.sampling {
         Sampling::Corners => SAMPLING_CORNERS,
@@ -1017,17 +1086,12 @@ pub fn pack_with_progress(
         ],
         image: [width, height, settings.spp.max(1), sampling],
         trace: [settings.max_depth.min(MAX_DEPTH_LIMIT), b.features, nx, ny],
-        params: [
-            settings.min_weight,
-            (scale * settings.offset.unwrap_or(EPS_OFFSET_REL) as f64) as f32,
-            0.0,
-            0.0,
-        ],
+        params: [settings.min_weight, eps, 0.0, 0.0],
         flags: [
             0,
             if need.bvh { ACCEL_BVH } else { ACCEL_GRID },
             tree.node_count() as u32,
-            0,
+            lb.res,
         ],
     };
     let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4;
@@ -1055,6 +1119,13 @@ pub fn pack_with_progress(
         depth: tree.depth,
         max_leaf: tree.max_leaf,
     };
+    let lightbuf = LightBufInfo {
+        res: lb.res,
+        cells: lb.start.len().saturating_sub(1),
+        refs: lb.refs.len(),
+        bytes: (lb.start.len() + lb.refs.len()) * 4,
+        build_seconds: lb_seconds,
+    };
     Ok(Packed {
         globals,
         prims: prims.into(),
@@ -1064,6 +1135,9 @@ pub fn pack_with_progress(
         cell_start: g.cell_start.into(),
         refs: g.refs.into(),
         bvh: tree.nodes.into(),
+        lb_start: lb.start.into(),
+        lb_refs: lb.refs.into(),
+        lightbuf,
         grid: grid_info,
         accel,
     })

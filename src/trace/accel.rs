@@ -7,6 +7,7 @@
 use super::bvh::bvh_traverse;
 use super::grid::grid_traverse;
 use super::intersect::{intersect, Hit, RayPre};
+use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
@@ -49,8 +50,12 @@ pub fn closest_hit<F: Real>(
 
 /// Light reaching the end of a shadow feeler of length `dist`: every
 /// primitive crossing it multiplies by its k_t (opaque ones give zero).
-/// Shadow feelers are not refracted. `light` indexes the shadow cache
-/// (≥ `SHADOW_CACHE_LIGHTS`: none), whose primitive is tested first.
+/// Shadow feelers are not refracted. `light` is the light the feeler goes
+/// to (≥ the light count: none); it indexes the shadow cache (≥
+/// `SHADOW_CACHE_LIGHTS`: none), whose primitive is tested first, and,
+/// when the scene carries light buffers (`Globals::flags.w` > 0), the
+/// light buffer whose cell lists the primitives to test. A feeler whose
+/// origin is the light's position walks the structure instead.
 pub fn transmittance<F: Real>(
     s: &SceneView,
     ray: &Ray<F>,
@@ -71,7 +76,17 @@ pub fn transmittance<F: Real>(
         }
     }
     let mut q = Query::shadow(dist, light);
-    accel_traverse(s, ray, pre, &mut q, work);
+    let g = s.globals;
+    let res = g.flags[3];
+    let cell = if res > 0 && light < g.counts[2] as usize {
+        lightbuf_cell(res, light as u32, ray.o - V3::of(&s.lights[light].pos))
+    } else {
+        None
+    };
+    match cell {
+        Some(c) => lightbuf_traverse(s, ray, pre, &mut q, c, work),
+        None => accel_traverse(s, ray, pre, &mut q, work),
+    }
     if q.done {
         V3::zero()
     } else {

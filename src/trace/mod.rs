@@ -5,6 +5,7 @@ pub mod accel;
 pub mod bvh;
 pub mod grid;
 pub mod intersect;
+pub mod lightbuf;
 pub mod math;
 pub mod query;
 pub mod sample;
@@ -25,6 +26,8 @@ pub struct SceneView<'a> {
     pub cell_start: &'a [u32],
     pub refs: &'a [u32],
     pub bvh: &'a [BvhChild],
+    pub lb_start: &'a [u32],
+    pub lb_refs: &'a [u32],
 }
 
 impl<'a> SceneView<'a> {
@@ -38,6 +41,8 @@ impl<'a> SceneView<'a> {
             cell_start: &p.cell_start,
             refs: &p.refs,
             bvh: &p.bvh,
+            lb_start: &p.lb_start,
+            lb_refs: &p.lb_refs,
         }
     }
 
