@@ -37,10 +37,12 @@ pub enum Knob {
     Grid,
     /// --accel: grid, bvh.
     Accel,
+    /// --shadows: plain, lightbuffer.
+    Shadows,
 }
 
 impl Knob {
-    pub const ALL: [Knob; 8] = [
+    pub const ALL: [Knob; 9] = [
         Knob::MaxDepth,
         Knob::MinWeight,
         Knob::Spp,
@@ -49,6 +51,7 @@ impl Knob {
         Knob::Backend,
         Knob::Grid,
         Knob::Accel,
+        Knob::Shadows,
     ];
 
     pub fn name(self) -> &'static str {
@@ -61,6 +64,7 @@ impl Knob {
             Knob::Backend => "backend",
             Knob::Grid => "grid",
             Knob::Accel => "accel",
+            Knob::Shadows => "shadows",
         }
     }
 }
@@ -88,6 +92,7 @@ pub struct Config {
     /// The grid's scale per axis against the heuristic's (forces the grid).
     pub grid_scale: Option<f32>,
     pub accel: Accel,
+    pub shadows: crate::pack::Shadows,
 }
 
 impl Default for Config {
@@ -103,6 +108,7 @@ impl Default for Config {
             device: Device::Cpu,
             grid_scale: None,
             accel: s.accel,
+            shadows: s.shadows,
         }
     }
 }
@@ -201,6 +207,12 @@ pub fn values(knob: Knob, gpu: bool) -> Vec<(String, Config)> {
             with("grid".into(), &|c| c.accel = Accel::Grid),
             with("bvh".into(), &|c| c.accel = Accel::Bvh),
         ],
+        Knob::Shadows => vec![
+            with("plain".into(), &|c| c.shadows = crate::pack::Shadows::Plain),
+            with("lightbuffer".into(), &|c| {
+                c.shadows = crate::pack::Shadows::LightBuffer
+            }),
+        ],
     }
 }
 
@@ -223,7 +235,7 @@ impl Plan {
             accel: c.accel,
             budget: self.budget,
             offset: None,
-            shadows: crate::pack::Shadows::Plain,
+            shadows: c.shadows,
         }
     }
 }
@@ -567,6 +579,7 @@ mod tests {
                     c.precision != d.precision,
                     c.device != d.device,
                     c.grid_scale != d.grid_scale || c.accel != d.accel,
+                    c.shadows != d.shadows,
                 ]
                 .iter()
                 .filter(|&&m| m)
