@@ -48,6 +48,7 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
 vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     uint cached = light < SHADOW_CACHE_LIGHTS ? shadow_cache[light] : 0u;
     if (cached != 0u) {
+        work_tests += 1u;
         Hit hc;
         if (intersect(prims[cached - 1u], ray, pre, dist, hc)) {
             return vec3(0.0);

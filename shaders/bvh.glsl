@@ -80,6 +80,7 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
                     loops_cut += 1u;
                 }
             } else {
+                work_nodes += 1u;
                 uint k = 2u * link;
                 BvhChild c0 = bvh[k];
                 BvhChild c1 = bvh[k + 1u];

@@ -232,6 +232,7 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
     uint max_cells = dda_max_cells();
     bool ended = false;
     for (uint visited = 0u; visited < max_cells; visited++) {
+        work_cells += 1u;
         uint ci = cell_index(dda.cell);
         uint start = cell_start[ci];
         uint end = cell_start[ci + 1u];

@@ -72,6 +72,7 @@ void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell) {
     if (q.done) {
         return;
     }
+    work_cells += 1u;
     uint start = lb_start[cell];
     uint end = lb_start[cell + 1u];
     uint k = start;

@@ -28,6 +28,13 @@ uint shadow_cache[SHADOW_CACHE_LIGHTS];
 // has no such budget.)
 uint loops_cut = 0u;
 
+// Work counters, twins of trace::query::Work's (primitive tests, grid
+// cells, BVH interior nodes), counted at the same places; render.comp adds
+// them up per subgroup and the host reads them into Frame::work.
+uint work_tests = 0u;
+uint work_cells = 0u;
+uint work_nodes = 0u;
+
 void shadow_cache_reset() {
     for (uint i = 0u; i < SHADOW_CACHE_LIGHTS; i++) {
         shadow_cache[i] = 0u;
@@ -68,6 +75,7 @@ Query query_shadow(float dist, uint light) {
 // Tests prim (primitive i) for query q; true when the query is done (an
 // opaque blocker for a feeler: nothing further can change the answer).
 bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
+    work_tests += 1u;
     Hit h;
     if (intersect(prim, ray, pre, q.t, h)) {
         if (q.shadow) {

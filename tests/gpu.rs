@@ -1496,3 +1496,87 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
     let given = render(&["--workgroup", "8x4"]);
     assert!(!given.contains("whitted profile --save"), "{given}");
 }
+
+/// The GPU's work counters (`Frame::work`, 64-bit through a carry word)
+/// mean what the CPU's mean: counted at the same places of the twins.
+/// They differ only through the shadow cache's lifetime (one invocation
+/// on the GPU, a 16×16 tile on the CPU; docs/gpu.md), so: within 5 % on
+/// every bundled scene with each structure (or 16 where there are only a
+/// handful), and equal on a CPU device
+/// where no opaque blocker is ever cached (glass only).
+#[test]
+fn gpu_work_counters_match_the_cpu() {
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    // 5 %, or 16 where a scene walks only a handful of cells.
+    let close = |a: u64, b: u64| (a as f64 - b as f64).abs() <= (0.05 * a.max(b) as f64).max(16.0);
+    for path in scene_files() {
+        for accel in [Accel::Grid, Accel::Bvh] {
+            let p = common::load(
+                &path,
+                &Settings {
+                    accel,
+                    ..common::small(64, 48)
+                },
+            );
+            let Some((c, gf)) = render_both(&p, &GpuOptions::default()) else {
+                return;
+            };
+            let name = format!("{} {accel:?}", path.display());
+            let (cw, gw) = (c.work, gf.work);
+            assert!(gw.tests > 0, "{name}: no tests counted on the GPU");
+            let walked = if accel == Accel::Grid {
+                (cw.cells, gw.cells)
+            } else {
+                (cw.nodes, gw.nodes)
+            };
+            assert!(walked.1 > 0, "{name}: no cells or nodes counted on the GPU");
+            assert!(
+                close(cw.tests, gw.tests),
+                "{name}: tests cpu {} gpu {}",
+                cw.tests,
+                gw.tests
+            );
+            assert!(
+                close(walked.0, walked.1),
+                "{name}: cells/nodes cpu {:?} gpu {:?}",
+                cw,
+                gw
+            );
+        }
+    }
+    let mut glass = String::from(
+        "[camera]\nfrom = [0, -9, 3]\nat = [0, 0, 0.5]\nup = [0, 0, 1]\nwidth = 64\nheight = 48\n\
+         [[light]]\nposition = [4, -5, 8]\n[[light]]\nposition = [-5, -2, 6]\n\
+         [material.g]\ncolor = [0.9, 0.9, 1]\nkd = 0.3\nks = 0.4\nshine = 30\nkt = 0.6\nior = 1.3\n",
+    );
+    for i in 0..12 {
+        let (x, y) = ((i % 4) as f64 * 1.3 - 2.0, (i / 4) as f64 * 1.3 - 1.3);
+        glass += &format!(
+            "[[object]]\ntype = \"sphere\"\ncenter = [{x}, {y}, 0.5]\nradius = 0.55\nmaterial = \"g\"\n"
+        );
+    }
+    glass +=
+        "[[object]]\ntype = \"box\"\nmin = [-4, -4, -0.2]\nmax = [4, 4, 0]\nmaterial = \"g\"\n";
+    for accel in [Accel::Grid, Accel::Bvh] {
+        let p = common::parse(
+            &glass,
+            &Settings {
+                accel,
+                ..common::small(64, 48)
+            },
+        );
+        let Some((c, gf)) = render_both(&p, &GpuOptions::default()) else {
+            return;
+        };
+        if exact {
+            assert_eq!(
+                (c.work.tests, c.work.cells, c.work.nodes),
+                (gf.work.tests, gf.work.cells, gf.work.nodes),
+                "glass {accel:?}"
+            );
+        } else {
+            assert!(close(c.work.tests, gf.work.tests), "glass {accel:?}");
+        }
+    }
+}

@@ -792,7 +792,7 @@ impl Gpu {
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, opts.staging)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
-        let counters = Buffer::readback(&self.ctx, "counters", 32)?;
+        let counters = Buffer::readback(&self.ctx, "counters", 48)?;
         let mut binds = scene.bindings();
         binds.push((7, &samples));
         binds.push((8, &counters));
@@ -823,6 +823,7 @@ impl Gpu {
         let tiles = dispatch::tiles(lw, lh, opts.tile, spp, max_samples);
         let t0 = Instant::now();
         let mut stats = RayStats::default();
+        let mut work = crate::trace::query::Work::default();
         let mut device_seconds: Option<f64> = None;
         let [wx, wy] = opts.workgroup;
         // A CPU driver's threads take contiguous blocks of workgroups:
@@ -852,7 +853,14 @@ impl Gpu {
                     )
                 },
             )?;
-            let c: [u32; 8] = bytemuck::pod_read_unaligned(counters.read(32)?);
+            let c: [u32; 12] = bytemuck::pod_read_unaligned(counters.read(48)?);
+            let wide = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
+            work.add(&crate::trace::query::Work {
+                tests: wide(c[6], c[7]),
+                cells: wide(c[8], c[9]),
+                nodes: wide(c[10], c[11]),
+                ..Default::default()
+            });
             if c[5] > 0 {
                 return Err(self.loops_cut(packed, c[5]));
             }
@@ -887,7 +895,7 @@ impl Gpu {
             height: h,
             pixels,
             stats,
-            work: Default::default(),
+            work,
             seconds: t0.elapsed().as_secs_f64(),
             device_seconds,
             phases: {
