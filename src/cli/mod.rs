@@ -93,8 +93,8 @@ pub enum Command {
     /// Example: whitted reference scenes/showcase.toml --width 200 --height 150 -o ref.exr
     Reference(reference::ReferenceArgs),
     /// Chart speed against accuracy: sweep max depth, min weight, samples
-    /// per pixel, sampling, precision, backend, grid density and
-    /// acceleration structure one at a time from the defaults; each point
+    /// per pixel, sampling, precision, backend, grid density, acceleration
+    /// structure and shadow method one at a time from the defaults; each point
     /// the median time of several runs after a warm-up and its error
     /// against the reference; the Pareto front ringed (docs/accuracy.md).
     ///
