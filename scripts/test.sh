@@ -28,3 +28,9 @@ fi
 export WHITTED_REQUIRE_GPU=${WHITTED_REQUIRE_GPU:-1}
 export WHITTED_REQUIRE_POVRAY=${WHITTED_REQUIRE_POVRAY:-1}
 cargo test --all-targets "$@"
+# The generators against the SPD's own files, where they are (the plain
+# suite checks facts recorded from them everywhere).
+spd_dir=${WHITTED_SPD_DIR:-../shared/scenes/spd}
+if [ -d "$spd_dir" ]; then
+  cargo test --test spd "$@" -- --ignored
+fi

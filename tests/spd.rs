@@ -202,25 +202,24 @@ fn differences(a: &Scene, b: &Scene) -> Vec<String> {
     d
 }
 
+/// Needs the SPD's own files, outside the repo: not in the plain suite
+/// (which checks the facts recorded from them everywhere:
+/// default_sizes_match_the_recorded_originals), run by scripts/test.sh
+/// with `--ignored` where the folder exists, and failing when a file is
+/// absent rather than passing.
 #[test]
+#[ignore = "needs the SPD's NFF files (WHITTED_SPD_DIR or ../shared/scenes/spd); scripts/test.sh runs it where they are"]
 fn default_sizes_match_the_spds_files() {
     let dir = spd_dir();
-    if !dir.is_dir() {
-        println!(
-            "note: {} is absent (set WHITTED_SPD_DIR to the SPD's NFF files): the generators \
-             are checked object by object only where the files are; everywhere against \
-             the facts recorded from them (default_sizes_match_the_recorded_originals)",
-            dir.display()
-        );
-        return;
-    }
+    assert!(
+        dir.is_dir(),
+        "{} is absent: set WHITTED_SPD_DIR to the SPD's NFF files",
+        dir.display()
+    );
     let mut failures = Vec::new();
     for s in SpdScene::ALL {
         let path = dir.join(format!("{s}.nff"));
-        if !path.is_file() {
-            println!("note: no {}", path.display());
-            continue;
-        }
+        assert!(path.is_file(), "{} is absent", path.display());
         let original = whitted::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let ours = spd::generate(s, None).unwrap();
         let mut d = differences(&ours, &original);
