@@ -29,7 +29,11 @@ pub fn rmse(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
 /// Peak signal-to-noise ratio in dB for a peak of 1 (linear radiance, the
 /// display's white): 10·log10(1/MSE); +∞ for identical images.
 pub fn psnr(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
-    let e = rmse(a, b);
+    psnr_of_rmse(rmse(a, b))
+}
+
+/// PSNR (peak 1) of an RMSE already computed.
+pub fn psnr_of_rmse(e: f64) -> f64 {
     if e == 0.0 {
         f64::INFINITY
     } else {
@@ -117,7 +121,7 @@ impl Accuracy {
         acc.worst_y = (worst_i / w) as u32;
         acc.fraction_over_step = over as f64 / a.len().max(1) as f64;
         acc.rmse = rmse(a, b);
-        acc.psnr = psnr(a, b);
+        acc.psnr = psnr_of_rmse(acc.rmse);
         let ra = output::to_rgb8(reference, Encoding::Srgb);
         let rb = output::to_rgb8(test, Encoding::Srgb);
         acc.mean_flip = flip(ra.as_raw(), rb.as_raw(), reference.width, reference.height).1;
@@ -303,6 +307,7 @@ pub fn compare(reference: &Frame, test: &Frame, tol: &Tolerance) -> Comparison {
     let rb = output::to_rgb8(test, Encoding::Srgb);
     let (_, mean_flip) = flip(ra.as_raw(), rb.as_raw(), reference.width, reference.height);
     let rays = ray_diffs(&reference.stats, &test.stats);
+    let e = rmse(a, b);
     let mut failures = Vec::new();
     if fraction_over > tol.fraction_over {
         failures.push(format!(
@@ -332,8 +337,8 @@ pub fn compare(reference: &Frame, test: &Frame, tol: &Tolerance) -> Comparison {
         height: reference.height,
         max_abs: max_abs(a, b),
         mean_abs: mean_abs(a, b),
-        rmse: rmse(a, b),
-        psnr: psnr(a, b),
+        rmse: e,
+        psnr: psnr_of_rmse(e),
         mean_flip,
         pixels_over,
         fraction_over,

@@ -657,7 +657,6 @@ fn time_render(p: &Packed) -> (f64, Frame) {
 }
 
 fn structure(ctx: &Ctx) -> Result<Report> {
-    let _ = ctx;
     let head = "ambient = [0.1, 0.1, 0.1]\nbackground = [0.2, 0.3, 0.5]\n\
         [[light]]\nposition = [5, -8, 9]\n\
         [material.m]\ncolor = [0.8, 0.6, 0.3]\nka = 0.2\nkd = 0.7\nks = 0.4\nshine = 30\nkr = 0.3\n";
@@ -998,6 +997,15 @@ pub fn distance(ctx: &Ctx) -> Result<Distance> {
     let origin = pack_it(&at(-1)?, &s)?;
     let origin_ref = cpu::render_as::<f64>(&origin, &|_, _| {});
     let origin_f32 = cpu::render(&origin, &|_, _| {});
+    // POV-Ray's image is 8-bit and clipped: it is compared with the
+    // reference clipped and quantised the same way.
+    let quantise = |f: &Frame| -> Vec<[f32; 3]> {
+        f.pixels
+            .iter()
+            .map(|p| p.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0))
+            .collect()
+    };
+    let origin_ref_8bit = quantise(&origin_ref);
     let pov_dir = tempfile::tempdir()?;
     let mut t = Table::new(&[
         "distance",
@@ -1021,15 +1029,7 @@ pub fn distance(ctx: &Ctx) -> Result<Distance> {
             let path = pov_dir.path().join(format!("d{k}.pov"));
             std::fs::write(&path, pov_text)?;
             let r = crate::povray::render(&path, &crate::povray::Options::new(W, H))?;
-            // POV-Ray's image is 8-bit and clipped: compare it with the
-            // reference clipped and quantised the same way.
-            let q = |f: &Frame| -> Vec<[f32; 3]> {
-                f.pixels
-                    .iter()
-                    .map(|p| p.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0))
-                    .collect()
-            };
-            Some(crate::metrics::psnr(&q(&origin_ref), &q(&r.frame)))
+            Some(crate::metrics::psnr(&origin_ref_8bit, &quantise(&r.frame)))
         } else {
             None
         };
