@@ -731,10 +731,10 @@ pub fn census(scene: &Scene) -> (u64, u64, u64) {
                 prims += 1;
                 if vertices.len() > 3 {
                     // Vertex pairs, edge bands and cells (pack::polygon):
-                    // at most n/2 + 1 + (BANDS_MAX + 1 + 8n + 3 + 8n)/4
-                    // vec4s (K ≤ n/4 bands of M ≤ 32 cells).
+                    // at most n/2 + 1 + (BANDS_MAX + 1 + 8n + 3 + 32n)/4
+                    // vec4s (K ≤ n/2 bands of M ≤ 64 cells).
                     let n = vertices.len() as u64;
-                    extra += n / 2 + 1 + (polygon::BANDS_MAX as u64 + 1) / 4 + 2 + 4 * n;
+                    extra += n / 2 + 1 + (polygon::BANDS_MAX as u64 + 1) / 4 + 2 + 10 * n;
                 }
                 bytes += (vertices.capacity() * size_of::<DVec3>()) as u64;
             }

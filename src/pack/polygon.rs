@@ -77,7 +77,7 @@ pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
         .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), p| {
             (l.min(p[1]), h.max(p[1]))
         });
-    let mut k = (n / 4).clamp(2, BANDS_MAX);
+    let mut k = (n / 2).clamp(2, BANDS_MAX);
     let lists = loop {
         if hi <= lo || k < 2 {
             return plain;
@@ -148,7 +148,7 @@ pub fn pack(q: &[[f32; 2]], convex: bool) -> Packed2d {
 }
 
 /// Most columns of cells per band.
-pub const CELL_COLUMNS_MAX: usize = 32;
+pub const CELL_COLUMNS_MAX: usize = 64;
 
 /// Classifies the cells of a banded polygon: the K bands cut into M
 /// columns over the vertices' u range. A cell that no edge's box comes

@@ -193,8 +193,32 @@ pub fn polygon<F: Real>(prim: &Prim, extra: &[[f32; 4]], ray: &Ray<F>, tmax: F) 
         CELL_OUT => return None,
         _ => {}
     }
-    let (lo, hi) = polygon_edges(prim, extra, py);
     let zero = F::zero();
+    if convex {
+        // Every edge in order, each vertex read once, and out at the
+        // first edge that disagrees in side. The same arithmetic and the
+        // same answer as the general loop below, which the shader keeps
+        // for both tests (intersect.glsl: llvmpipe's loop budget).
+        let [lu, lv] = vertex(extra, base, count - 1);
+        let (mut ax, mut ay) = (F::of(lu), F::of(lv));
+        let mut pos = false;
+        let mut neg = false;
+        for j in 0..count {
+            let [cu, cv] = vertex(extra, base, j);
+            let (bx, by) = (F::of(cu), F::of(cv));
+            let ex = bx - ax;
+            let ey = by - ay;
+            let e = ex * (py - ay) - ey * (px - ax);
+            pos = pos || e > zero;
+            neg = neg || e < zero;
+            if pos && neg {
+                return None;
+            }
+            (ax, ay) = (bx, by);
+        }
+        return Some(h);
+    }
+    let (lo, hi) = polygon_edges(prim, extra, py);
     let mut pos = false;
     let mut neg = false;
     let mut inside = false;
