@@ -37,6 +37,7 @@ fn const_u32(name: &str) -> u32 {
         "SHADOW_CACHE_LIGHTS" => SHADOW_CACHE_LIGHTS,
         "SKIP_MAX" => SKIP_MAX,
         "BVH_STACK_SIZE" => BVH_STACK_SIZE,
+        "BVH_WIDTH" => BVH_WIDTH,
         "ACCEL_GRID" => ACCEL_GRID,
         "ACCEL_BVH" => ACCEL_BVH,
         "CELL_OUT" => CELL_OUT,

@@ -1,44 +1,57 @@
 // Traversal of the bounding-volume hierarchy: twin of src/trace/bvh.rs.
 //
-// One traversal serves both queries (query.glsl). At an interior node both
-// children's boxes are tested against the segment 0..q.t; the nearer child
-// (by where the ray enters its box) is walked first and the other is
-// pushed with its entry distance, so that a closest-hit query drops it
-// when it pops it if a hit nearer than that was found meanwhile. A leaf
-// hands its primitives to query_prim. The stack has BVH_STACK_SIZE
-// entries, which the build's depth bound keeps enough (src/pack/bvh.rs).
+// One traversal serves both queries (query.glsl). At a node the boxes of
+// its (up to four) children are tested against the segment 0..q.t, four
+// lanes at once (bvh_entries); the children the ray enters are ordered by
+// where it enters them (lane order on a tie), the nearest is walked first
+// and the others are pushed, farthest first, with their entry distances,
+// so that a closest-hit query drops one when it pops it if a hit nearer
+// than that was found meanwhile. A leaf hands its primitives to
+// query_prim. The stack has BVH_STACK_SIZE entries, which the build keeps
+// enough (src/pack/bvh.rs, collapse). No loop runs inside a node visit
+// (the ordering is a sorting network, the pushes straight-line code):
+// llvmpipe counts every loop iteration against one budget (grid.glsl).
 #ifndef WHITTED_BVH_GLSL
 #define WHITTED_BVH_GLSL
 
 #include "precise.glsl"
 #include "query.glsl"
 
-// Where the ray enters the child's box within the segment 0..tmax (0 from
-// inside) in t; false when it misses it. Slabs, the near plane chosen by
-// the sign of 1/d. The bounds are narrowed by comparisons, which ignore a
-// NaN: a ray parallel to an axis whose origin lies on one of the box's
-// planes (0·∞) counts as inside that slab. A parallel ray outside a slab
-// gets t0 = +∞: a miss unless tmax is +∞ too, then a walk for nothing,
-// never a wrong skip (src/trace/bvh.rs).
-bool bvh_entry(BvhChild c, Ray ray, RayPre pre, float tmax, out float t) {
-    float t0 = 0.0;
-    float t1 = tmax;
+// Where the ray enters each child's box within the segment 0..tmax (0
+// from inside) in te, and which boxes it enters. Slabs, the near plane
+// chosen by the sign of 1/d. The bounds are narrowed by comparisons, which
+// ignore a NaN: a ray parallel to an axis whose origin lies on one of the
+// box's planes (0·∞) counts as inside that slab. A parallel ray outside a
+// slab gets t0 = +∞: a miss unless tmax is +∞ too, then a walk for
+// nothing, never a wrong skip (src/trace/bvh.rs). `mix` with a bvec
+// selects, it does no arithmetic.
+bvec4 bvh_entries(BvhNode n, Ray ray, RayPre pre, float tmax, out vec4 te) {
+    vec4 t0 = vec4(0.0);
+    vec4 t1 = vec4(tmax);
     for (int i = 0; i < 3; i++) {
         float o = ray.o[i];
         float inv = pre.inv_d[i];
-        float near = inv >= 0.0 ? c.lo[i] : c.hi[i];
-        float far = inv >= 0.0 ? c.hi[i] : c.lo[i];
-        PRECISE float tn = (near - o) * inv;
-        PRECISE float tf = (far - o) * inv;
-        if (tn > t0) {
-            t0 = tn;
-        }
-        if (tf < t1) {
-            t1 = tf;
-        }
+        vec4 near = inv >= 0.0 ? n.lo[i] : n.hi[i];
+        vec4 far = inv >= 0.0 ? n.hi[i] : n.lo[i];
+        PRECISE vec4 tn = (near - o) * inv;
+        PRECISE vec4 tf = (far - o) * inv;
+        t0 = mix(t0, tn, greaterThan(tn, t0));
+        t1 = mix(t1, tf, lessThan(tf, t1));
     }
-    t = t0;
-    return t0 <= t1;
+    te = t0;
+    return lessThanEqual(t0, t1);
+}
+
+// One comparator of the sorting network: (ta, ka) before (tb, kb) by t,
+// then by key.
+void bvh_order2(inout float ta, inout uint ka, inout float tb, inout uint kb) {
+    bool swap = tb < ta || (tb == ta && kb < ka);
+    float t = ta;
+    uint k = ka;
+    ta = swap ? tb : ta;
+    ka = swap ? kb : ka;
+    tb = swap ? t : tb;
+    kb = swap ? k : kb;
 }
 
 // Walks the hierarchy for query q: every leaf whose box (and whose
@@ -50,17 +63,17 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
     if (nodes == 0u) {
         return;
     }
-    // The pushed children: their entries' indices and entry distances.
+    // The pushed children: node · BVH_WIDTH + lane, and entry distances.
     uint stack_slot[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     uint sp = 0u;
-    // The current child: the root (interior node 0) first.
+    // The current child: the root (node 0) first.
     uint link = 0u;
     uint count = 0u;
     float t = 0.0;
-    // Each child entry becomes the current one at most once, so a walk
-    // takes at most 2·nodes + 1 steps (the bound keeps a NaN ray finite).
-    uint max_steps = 2u * nodes + 1u;
+    // Each child becomes the current one at most once, so a walk takes at
+    // most BVH_WIDTH·nodes + 1 steps (the bound keeps a NaN ray finite).
+    uint max_steps = BVH_WIDTH * nodes + 1u;
     bool ended = false;
     for (uint step = 0u; step < max_steps; step++) {
         if (t <= q.t) {
@@ -81,26 +94,48 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
                 }
             } else {
                 work_nodes += 1u;
-                uint k = 2u * link;
-                BvhChild c0 = bvh[k];
-                BvhChild c1 = bvh[k + 1u];
-                float t0;
-                float t1;
-                bool h0 = bvh_entry(c0, ray, pre, q.t, t0);
-                bool h1 = bvh_entry(c1, ray, pre, q.t, t1);
-                if (h0 || h1) {
-                    if (h0 && h1) {
-                        // Nearer first (the first child on a tie); the
-                        // other waits on the stack.
-                        bool second = t1 < t0;
-                        stack_slot[sp] = second ? k : k + 1u;
-                        stack_t[sp] = second ? t0 : t1;
+                BvhNode n = bvh[link];
+                vec4 te;
+                bvec4 hit = bvh_entries(n, ray, pre, q.t, te);
+                // Lanes entered (not empty ones) keep their distance and
+                // key = lane; the others sort last (+∞, lane + 4).
+                bvec4 real = notEqual(n.count | n.link, uvec4(0u));
+                bvec4 enter = bvec4(uvec4(hit) & uvec4(real));
+                uint m = uint(enter.x) + uint(enter.y) + uint(enter.z) + uint(enter.w);
+                if (m > 0u) {
+                    float inf = uintBitsToFloat(0x7f800000u);
+                    float s0 = enter.x ? te.x : inf;
+                    float s1 = enter.y ? te.y : inf;
+                    float s2 = enter.z ? te.z : inf;
+                    float s3 = enter.w ? te.w : inf;
+                    uint k0 = enter.x ? 0u : 4u;
+                    uint k1 = enter.y ? 1u : 5u;
+                    uint k2 = enter.z ? 2u : 6u;
+                    uint k3 = enter.w ? 3u : 7u;
+                    bvh_order2(s0, k0, s1, k1);
+                    bvh_order2(s2, k2, s3, k3);
+                    bvh_order2(s0, k0, s2, k2);
+                    bvh_order2(s1, k1, s3, k3);
+                    bvh_order2(s1, k1, s2, k2);
+                    uint base = link * BVH_WIDTH;
+                    if (m > 3u) {
+                        stack_slot[sp] = base + k3;
+                        stack_t[sp] = s3;
                         sp += 1u;
-                        h0 = !second;
                     }
-                    link = h0 ? c0.link : c1.link;
-                    count = h0 ? c0.count : c1.count;
-                    t = h0 ? t0 : t1;
+                    if (m > 2u) {
+                        stack_slot[sp] = base + k2;
+                        stack_t[sp] = s2;
+                        sp += 1u;
+                    }
+                    if (m > 1u) {
+                        stack_slot[sp] = base + k1;
+                        stack_t[sp] = s1;
+                        sp += 1u;
+                    }
+                    link = n.link[k0];
+                    count = n.count[k0];
+                    t = s0;
                     continue;
                 }
             }
@@ -110,9 +145,9 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
             break;
         }
         sp -= 1u;
-        BvhChild c = bvh[stack_slot[sp]];
-        link = c.link;
-        count = c.count;
+        uint slot = stack_slot[sp];
+        link = bvh[slot / BVH_WIDTH].link[slot % BVH_WIDTH];
+        count = bvh[slot / BVH_WIDTH].count[slot % BVH_WIDTH];
         t = stack_t[sp];
     }
     if (!ended) {

@@ -56,14 +56,16 @@ struct Light {
     vec4 falloff; // c1, c2, c3 of f(d) = min(1, 1/(c1 + c2 d + c3 d²))
 };
 
-// One child of an interior BVH node (src/pack/layout.rs): bvh[2k] and
-// bvh[2k + 1] are interior node k's children. count > 0: a leaf of count
-// primitives from prims[link]; count = 0: the interior node link.
-struct BvhChild {
-    vec3 lo;
-    uint link;
-    vec3 hi;
-    uint count;
+// One node of the 4-wide BVH (src/pack/layout.rs, BvhNode): lane k of
+// each field describes child k. lo[axis], hi[axis]: the children's boxes
+// on that axis. count[k] > 0: a leaf of count[k] primitives from
+// prims[link[k]]; count[k] = 0 and link[k] > 0: the node link[k]; both 0:
+// no child (an empty box).
+struct BvhNode {
+    vec4 lo[3];
+    vec4 hi[3];
+    uvec4 link;
+    uvec4 count;
 };
 
 layout(set = 0, binding = 0, std430) readonly buffer GlobalsBuf { Globals g; };
@@ -74,7 +76,7 @@ layout(set = 0, binding = 4, std430) readonly buffer LightsBuf { Light lights[];
 layout(set = 0, binding = 5, std430) readonly buffer CellStartBuf { uint cell_start[]; };
 layout(set = 0, binding = 6, std430) readonly buffer RefsBuf { uint refs[]; };
 // Binding 11 (7 to 10 are the kernels' own): the BVH, when it is in use.
-layout(set = 0, binding = 11, std430) readonly buffer BvhBuf { BvhChild bvh[]; };
+layout(set = 0, binding = 11, std430) readonly buffer BvhBuf { BvhNode bvh[]; };
 // Bindings 12 and 13: the light buffers' cell offsets and primitive lists
 // (src/pack/lightbuf.rs), when g.flags.w > 0.
 layout(set = 0, binding = 12, std430) readonly buffer LbStartBuf { uint lb_start[]; };

@@ -22,10 +22,13 @@ pub const GRID_MAX_DIM: u32 = 1023;
 pub const SKIP_MAX: u32 = 15;
 /// Target cells per finite primitive for the grid heuristic.
 pub const GRID_DENSITY: f32 = 3.0;
-/// Entries of the BVH traversal stack. The build keeps every interior
-/// node at depth < BVH_STACK_SIZE (the root at depth 0), and a traversal
-/// pushes at most one child per interior node on its path.
+/// Entries of the BVH traversal stack. The binary build keeps every
+/// interior node at depth < BVH_STACK_SIZE (the root at depth 0), and the
+/// collapse to 4-wide nodes keeps, on every path, the children a traversal
+/// may push within it (`pack::bvh::collapse`).
 pub const BVH_STACK_SIZE: u32 = 64;
+/// Children per BVH node (`pack::layout::BvhNode`).
+pub const BVH_WIDTH: u32 = 4;
 /// Acceleration structures (`Globals::flags.y`): which one the tracers walk.
 pub const ACCEL_GRID: u32 = 0;
 pub const ACCEL_BVH: u32 = 1;

@@ -19,7 +19,7 @@ use whitted::gpu::{
     DeviceKind, Fault, Gpu, GpuError, GpuMath, GpuOptions, PipelineCache, ProbeItem, ProbeResult,
 };
 use whitted::metrics::{self, Tolerance};
-use whitted::pack::layout::{BvhChild, Globals, Light, Material, Prim};
+use whitted::pack::layout::{BvhNode, Globals, Light, Material, Prim};
 use whitted::pack::{Accel, Packed, Sampling, Settings, Shadows};
 
 // ------------------------------------------------------------ SPIR-V layout
@@ -208,15 +208,15 @@ fn shader_layout_matches_rust() {
                 "{kernel}.comp binding {b}"
             );
         }
-        // BvhChild packs a vec3 and a uint into each 16 bytes.
+        // BvhNode: three vec4s per box corner, lane by lane.
         assert_eq!(
-            r.layout("BvhChild"),
-            fields!(BvhChild: lo, link, hi, count),
-            "{kernel}.comp: struct BvhChild"
+            r.layout("BvhNode"),
+            fields!(BvhNode: lo, hi, link, count),
+            "{kernel}.comp: struct BvhNode"
         );
         assert_eq!(
             r.binding_array(11),
-            ("BvhChild".into(), size_of::<BvhChild>() as u32),
+            ("BvhNode".into(), size_of::<BvhNode>() as u32),
             "{kernel}.comp binding 11"
         );
         if kernel.starts_with("render") {

@@ -148,8 +148,9 @@ pub struct LoopLoad {
     pub unbounded: u32,
     pub cell_refs: u32,
     pub dims: [u32; 3],
-    /// With the BVH: a typical walk's steps, two per level of the
-    /// deepest path (a node, and a pushed child popped) plus one leaf.
+    /// With the BVH: a typical walk's steps, `BVH_WIDTH` per level of the
+    /// deepest path (a node, and its other children pushed and popped)
+    /// plus one leaf.
     pub bvh_steps: u32,
 }
 
@@ -198,7 +199,7 @@ impl LoopLoad {
                 [0; 3]
             },
             bvh_steps: if p.structure() == crate::pack::Accel::Bvh && g.flags[2] > 0 {
-                2 * (p.accel.depth + 1) + p.accel.max_leaf
+                crate::constants::BVH_WIDTH * (p.accel.depth + 1) + p.accel.max_leaf
             } else {
                 0
             },

@@ -10,24 +10,31 @@
 //!
 //! Every primitive is in exactly one leaf and a leaf is a contiguous run
 //! of primitives: `Bvh::order` is the order the packed primitives take.
-//! Nodes are flattened depth-first, two `BvhChild` entries per interior
-//! node (`pack::layout::BvhChild`); the traversal reads both children's
-//! boxes from one cache line.
+//! The binary tree is then collapsed into 4-wide nodes (`collapse`,
+//! `pack::layout::BvhNode`), flattened depth-first: a node's children are
+//! the binary tree's descendants two or three levels down, the one with
+//! the largest surface area opened first, so that one node visit tests up
+//! to four boxes with four-wide arithmetic and a walk visits about half
+//! as many nodes.
 //!
 //! Boxes are f32, rounded outwards from the primitives' f64 bounds padded
 //! by `PAD_REL` of their diagonal and `PAD_ULPS` f32 steps of the scene's
 //! largest coordinate: a ray whose f32 intersection routine hits a
 //! primitive enters every box around it, rounding and all.
 //!
-//! Depth: the traversal's stack has `BVH_STACK_SIZE` entries and pushes
-//! at most one per interior node on its path, so interior nodes stay at
-//! depth < `BVH_STACK_SIZE`: a node at depth d with N primitives is split
-//! by the heuristic only while d + ⌈log₂ N⌉ < `BVH_STACK_SIZE` − 1, and
-//! at the median otherwise (which halves N at each level).
+//! Depth: the traversal's stack has `BVH_STACK_SIZE` entries. A binary
+//! walk would push at most one per interior node on its path, so the
+//! binary tree keeps its interior nodes at depth < `BVH_STACK_SIZE`: a
+//! node at depth d with N primitives is split by the heuristic only while
+//! d + ⌈log₂ N⌉ < `BVH_STACK_SIZE` − 1, and at the median otherwise
+//! (which halves N at each level). A 4-wide node pushes up to three; the
+//! collapse opens a child only while every path keeps within the stack
+//! (`collapse`), so a tree deep enough to need it keeps 2-wide nodes
+//! where it must.
 
 use super::grid::{Bounds, Progress, Stage};
-use super::layout::BvhChild;
-use crate::constants::BVH_STACK_SIZE;
+use super::layout::BvhNode;
+use crate::constants::{BVH_STACK_SIZE, BVH_WIDTH};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Bins per axis of the binned heuristic.
@@ -45,33 +52,73 @@ pub const PAD_REL: f64 = 1e-5;
 pub const PAD_ULPS: f64 = 8.0;
 
 /// Bytes per finite primitive while the BVH is built: the build items
-/// (28), the leaf order (4), and the node entries (at most 2 per
+/// (28), the leaf order (4), the binary tree's entries (at most 2 per
 /// primitive: a leaf holds at least one) with a copy of a subtree's
-/// entries where parallel subtrees join (2 × 64).
-pub const BUILD_BYTES_PER_PRIM: u64 = 28 + 4 + 2 * 64;
-/// Bytes per finite primitive the BVH keeps for the render, at most (two
-/// 32-byte entries per interior node, fewer than one node per primitive).
-pub const BYTES_PER_PRIM: u64 = 64;
+/// entries where parallel subtrees join (2 × 64), its heights (4), and
+/// the 4-wide nodes (`BYTES_PER_PRIM`).
+pub const BUILD_BYTES_PER_PRIM: u64 = 28 + 4 + 2 * 64 + 4 + BYTES_PER_PRIM;
+/// Bytes per finite primitive the BVH keeps for the render, at most: one
+/// 128-byte node per binary interior node (where the stack forbids
+/// opening any child), fewer than one per primitive. A heuristic tree
+/// keeps about a fifth of that (the binary tree has about one interior
+/// node per two primitives, and a 4-wide node replaces about three).
+pub const BYTES_PER_PRIM: u64 = 128;
 
-/// The hierarchy: node entries, the primitives' leaf order, and its shape.
+/// One child of a node of the binary tree the build makes before the
+/// collapse: entries 2k and 2k + 1 are interior node k's children. A
+/// positive `count`: a leaf of `count` primitives from `link` on; `count`
+/// = 0: the interior node `link`; an empty box (`EMPTY`) for a root that
+/// is one leaf.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BvhChild {
+    pub lo: [f32; 3],
+    pub link: u32,
+    pub hi: [f32; 3],
+    pub count: u32,
+}
+
+impl BvhChild {
+    /// The child that no ray enters.
+    pub const EMPTY: BvhChild = BvhChild {
+        lo: [f32::INFINITY; 3],
+        link: 0,
+        hi: [f32::NEG_INFINITY; 3],
+        count: 0,
+    };
+
+    /// An interior node (not a leaf, not empty).
+    fn interior(&self) -> bool {
+        self.count == 0 && self.link > 0
+    }
+
+    fn half_area(&self) -> f64 {
+        let d = [0, 1, 2].map(|i| (self.hi[i] as f64 - self.lo[i] as f64).max(0.0));
+        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    }
+}
+
+/// The hierarchy: its 4-wide nodes, the primitives' leaf order, and its
+/// shape.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
-    /// Two entries per interior node, depth-first (node 0 the root).
-    pub nodes: Vec<BvhChild>,
+    /// The nodes, depth-first (node 0 the root).
+    pub nodes: Vec<BvhNode>,
     /// Position i of the packed (finite) primitives holds primitive
     /// `order[i]` of the input.
     pub order: Vec<u32>,
-    /// Depth of the deepest interior node (the root: 0).
+    /// Depth of the deepest node (the root: 0).
     pub depth: u32,
+    /// Interior nodes of the binary tree the nodes were collapsed from.
+    pub binary_nodes: u32,
     pub leaves: u32,
     /// Most primitives in one leaf.
     pub max_leaf: u32,
 }
 
 impl Bvh {
-    /// Interior nodes.
+    /// Nodes (4-wide).
     pub fn node_count(&self) -> usize {
-        self.nodes.len() / 2
+        self.nodes.len()
     }
     pub fn bytes(&self) -> usize {
         std::mem::size_of_val(self.nodes.as_slice())
@@ -191,14 +238,101 @@ pub fn build(bounds: &[Bounds], progress: Progress) -> Bvh {
         // The whole scene is one leaf: a root whose second child is empty.
         nodes = vec![root, BvhChild::EMPTY];
     }
+    let (wide, depth) = collapse(&nodes);
     progress(Stage::Bvh, n as u64, n as u64);
     Bvh {
-        nodes,
+        binary_nodes: (nodes.len() / 2) as u32,
+        nodes: wide,
         order: items.iter().map(|it| it.idx).collect(),
-        depth: shape.depth,
+        depth,
         leaves: shape.leaves,
         max_leaf: shape.max_leaf,
     }
+}
+
+/// Collapses the binary tree `bin` (two entries per interior node) into
+/// 4-wide nodes; returns them (depth-first, the root first) and the depth
+/// of the deepest.
+///
+/// A node starts with its binary node's two children and opens the
+/// interior child of largest surface area (replacing it by its two
+/// children, in place, so that the left-to-right order stays) until it
+/// has `BVH_WIDTH` children or none is left to open. The stack bounds the
+/// opening: a walk reaching a node after p pushes pushes at most k − 1
+/// there (k children), and below a child c at most h(c), the binary
+/// height of c (interior nodes on its longest downward path, each a
+/// 2-wide node in the worst case). A child is opened only if p + k − 1 +
+/// max h(c) stays within `BVH_STACK_SIZE`; the binary tree's depth bound
+/// makes that hold at the root with two children, so it holds on every
+/// path. In a heuristic tree of ordinary depth every node is opened fully.
+pub fn collapse(bin: &[BvhChild]) -> (Vec<BvhNode>, u32) {
+    if bin.is_empty() {
+        return (Vec::new(), 0);
+    }
+    // Binary heights, children after parents (depth-first order).
+    let nodes = bin.len() / 2;
+    let mut h = vec![0u32; nodes];
+    for k in (0..nodes).rev() {
+        let ch = |c: &BvhChild| if c.interior() { h[c.link as usize] } else { 0 };
+        h[k] = 1 + ch(&bin[2 * k]).max(ch(&bin[2 * k + 1]));
+    }
+    let mut out = Vec::with_capacity(nodes / 2 + 1);
+    let mut depth = 0;
+    wide_node(bin, &h, 0, 0, 0, &mut out, &mut depth);
+    (out, depth)
+}
+
+/// Appends the 4-wide node made from binary interior node `node`, reached
+/// after `pushes` pushes at `depth`, and its subtree; returns its index.
+fn wide_node(
+    bin: &[BvhChild],
+    h: &[u32],
+    node: u32,
+    pushes: u32,
+    depth: u32,
+    out: &mut Vec<BvhNode>,
+    max_depth: &mut u32,
+) -> u32 {
+    let height = |c: &BvhChild| if c.interior() { h[c.link as usize] } else { 0 };
+    let k = 2 * node as usize;
+    let mut kids = vec![bin[k], bin[k + 1]];
+    while kids.len() < BVH_WIDTH as usize {
+        let Some((i, _)) = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.interior())
+            .max_by(|a, b| a.1.half_area().total_cmp(&b.1.half_area()))
+        else {
+            break;
+        };
+        let c = 2 * kids[i].link as usize;
+        let mut trial = kids.clone();
+        trial.splice(i..=i, [bin[c], bin[c + 1]]);
+        let below = trial.iter().map(height).max().unwrap_or(0);
+        if pushes + trial.len() as u32 - 1 + below > BVH_STACK_SIZE {
+            break;
+        }
+        kids = trial;
+    }
+    *max_depth = (*max_depth).max(depth);
+    let at = out.len();
+    out.push(BvhNode::EMPTY);
+    let inner = pushes + kids.len() as u32 - 1;
+    let mut n = BvhNode::EMPTY;
+    for (lane, c) in kids.iter().enumerate() {
+        for a in 0..3 {
+            n.lo[a][lane] = c.lo[a];
+            n.hi[a][lane] = c.hi[a];
+        }
+        if c.interior() {
+            n.link[lane] = wide_node(bin, h, c.link, inner, depth + 1, out, max_depth);
+        } else {
+            n.link[lane] = c.link;
+            n.count[lane] = c.count;
+        }
+    }
+    out[at] = n;
+    at as u32
 }
 
 struct Ctx<'a> {
@@ -571,7 +705,8 @@ mod tests {
 
     /// Walks the flattened tree checking its invariants: every primitive
     /// in exactly one leaf, every child box inside its parent's and
-    /// around its primitives' (padded) bounds, nodes depth-first.
+    /// around its primitives' (padded) bounds, nodes depth-first, and the
+    /// children a walk may push on any path within the stack.
     fn check(bvh: &Bvh, bounds: &[Bounds]) {
         let n = bounds.len();
         let mut seen = vec![false; n];
@@ -583,36 +718,51 @@ mod tests {
         let mut covered = vec![0u32; n];
         let mut leaves = 0;
         let mut depth = 0;
-        // (node, depth, parent box)
-        let mut stack = vec![(0usize, 0u32, Aabb::EMPTY)];
+        // (node, depth, pushes before it, parent box)
+        let mut stack = vec![(0usize, 0u32, 0u32, None::<Aabb>)];
         let mut visited = 0;
-        while let Some((k, d, parent)) = stack.pop() {
+        while let Some((k, d, pushes, parent)) = stack.pop() {
             visited += 1;
             assert_eq!(k, visited - 1, "nodes are numbered depth-first");
             depth = depth.max(d);
-            assert!(d < BVH_STACK_SIZE);
-            for c in [&bvh.nodes[2 * k + 1], &bvh.nodes[2 * k]] {
-                if k > 0 {
-                    for i in 0..3 {
-                        assert!(c.lo[i] >= parent.lo[i] && c.hi[i] <= parent.hi[i]);
-                    }
-                }
-                if *c == BvhChild::EMPTY {
-                    assert_eq!(k, 0, "only a one-leaf root has an empty child");
+            let node = &bvh.nodes[k];
+            let lanes: Vec<usize> = (0..BVH_WIDTH as usize)
+                .filter(|&l| node.count[l] > 0 || node.link[l] > 0)
+                .collect();
+            assert!(!lanes.is_empty());
+            let inner = pushes + lanes.len() as u32 - 1;
+            assert!(inner <= BVH_STACK_SIZE, "{inner} pushes on a path");
+            for l in 0..BVH_WIDTH as usize {
+                let lo = [0, 1, 2].map(|a| node.lo[a][l]);
+                let hi = [0, 1, 2].map(|a| node.hi[a][l]);
+                if !lanes.contains(&l) {
+                    assert_eq!((lo, hi), ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]));
                     continue;
                 }
-                if c.count > 0 {
+                if let Some(p) = parent {
+                    for i in 0..3 {
+                        assert!(lo[i] >= p.lo[i] && hi[i] <= p.hi[i]);
+                    }
+                }
+                if node.count[l] > 0 {
                     leaves += 1;
-                    assert!(c.count as usize <= MAX_LEAF.max(1));
-                    for p in c.link..c.link + c.count {
+                    assert!(node.count[l] as usize <= MAX_LEAF.max(1));
+                    for p in node.link[l]..node.link[l] + node.count[l] {
                         covered[p as usize] += 1;
                         let b = &bounds[bvh.order[p as usize] as usize];
                         for i in 0..3 {
-                            assert!((c.lo[i] as f64) < b.lo[i] && (c.hi[i] as f64) > b.hi[i]);
+                            assert!((lo[i] as f64) < b.lo[i] && (hi[i] as f64) > b.hi[i]);
                         }
                     }
-                } else {
-                    stack.push((c.link as usize, d + 1, Aabb { lo: c.lo, hi: c.hi }));
+                }
+            }
+            for &l in lanes.iter().rev() {
+                if node.count[l] == 0 {
+                    let b = Aabb {
+                        lo: [0, 1, 2].map(|a| node.lo[a][l]),
+                        hi: [0, 1, 2].map(|a| node.hi[a][l]),
+                    };
+                    stack.push((node.link[l] as usize, d + 1, inner, Some(b)));
                 }
             }
         }
@@ -636,6 +786,11 @@ mod tests {
             let bvh = build(&b, &|_, _, _| {});
             check(&bvh, &b);
             assert!(bvh.node_count() < n.max(2));
+            assert!(bvh.node_count() as u32 <= bvh.binary_nodes);
+            if n >= 100 {
+                // Most nodes are opened to four children.
+                assert!(bvh.node_count() * 2 < bvh.binary_nodes as usize, "{n}");
+            }
         }
     }
 
@@ -648,6 +803,7 @@ mod tests {
         let bvh = build(&pile, &|_, _, _| {});
         check(&bvh, &pile);
         assert!(bvh.depth <= ceil_log2(10_000));
+        assert!(bvh.binary_nodes > 0);
         let line: Vec<_> = (0..3000)
             .map(|i| {
                 let x = 1.01f64.powi(i);
@@ -673,8 +829,16 @@ mod tests {
         let b = bounds_of(&pts);
         let bvh = build(&b, &|_, _, _| {});
         check(&bvh, &b);
-        let (l, rt) = (&bvh.nodes[0], &bvh.nodes[1]);
-        assert!(l.hi[0] < 10.0 && rt.lo[0] > 990.0 || rt.hi[0] < 10.0 && l.lo[0] > 990.0);
+        let root = &bvh.nodes[0];
+        let (mut near, mut far) = (0, 0);
+        for l in 0..BVH_WIDTH as usize {
+            if root.hi[0][l] < 10.0 {
+                near += 1;
+            } else if root.lo[0][l] > 990.0 {
+                far += 1;
+            }
+        }
+        assert!(near > 0 && far > 0 && near + far == BVH_WIDTH as usize);
     }
 
     #[test]

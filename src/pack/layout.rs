@@ -112,34 +112,41 @@ pub struct Light {
     pub falloff: [f32; 4],
 }
 
-/// One child of an interior BVH node, 32 bytes: entries 2k and 2k + 1 of
-/// the `bvh` array are the two children of interior node k (node 0 the
-/// root; nodes in depth-first order). `lo`/`hi`: the child's box (f32,
-/// rounded outwards from the primitives' padded bounds). `count` > 0: a
-/// leaf of `count` primitives from `prims[link]` on; `count` = 0: the
-/// interior node `link`. An empty box (lo = +∞, hi = −∞) is never
-/// entered: a root that is one leaf has such a second child.
+/// One node of the 4-wide BVH, 128 bytes: up to `BVH_WIDTH` children,
+/// lane k of each field describing child k (nodes in depth-first order,
+/// node 0 the root). `lo[axis]`/`hi[axis]`: the children's boxes on that
+/// axis (f32, rounded outwards from the primitives' padded bounds), laid
+/// out lane by lane so that one node's four box tests are four-wide
+/// arithmetic on both backends. `count[k]` > 0: a leaf of `count[k]`
+/// primitives from `prims[link[k]]` on; `count[k]` = 0 and `link[k]` > 0:
+/// the node `link[k]`; both 0: no child (an empty box, lo = +∞, hi = −∞;
+/// the root is never a child).
 ///
-/// `vec3` then `uint` is 16 bytes in std430 (a `vec3` is aligned to 16
-/// and 12 long), so no padding; aligned to 32 bytes so that a node's two
-/// children share one cache line.
-#[repr(C, align(32))]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct BvhChild {
-    pub lo: [f32; 3],
-    pub link: u32,
-    pub hi: [f32; 3],
-    pub count: u32,
+/// In std430 a `vec4[3]` has a 16-byte stride: no padding; aligned to 64
+/// bytes so that a node spans two whole cache lines.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct BvhNode {
+    pub lo: [[f32; 4]; 3],
+    pub hi: [[f32; 4]; 3],
+    pub link: [u32; 4],
+    pub count: [u32; 4],
 }
 
-impl BvhChild {
-    /// The child that no ray enters.
-    pub const EMPTY: BvhChild = BvhChild {
-        lo: [f32::INFINITY; 3],
-        link: 0,
-        hi: [f32::NEG_INFINITY; 3],
-        count: 0,
+impl BvhNode {
+    /// A node with no children.
+    pub const EMPTY: BvhNode = BvhNode {
+        lo: [[f32::INFINITY; 4]; 3],
+        hi: [[f32::NEG_INFINITY; 4]; 3],
+        link: [0; 4],
+        count: [0; 4],
     };
+}
+
+impl Default for BvhNode {
+    fn default() -> Self {
+        BvhNode::EMPTY
+    }
 }
 
 pub fn cell_pack(x: u32, y: u32, z: u32) -> u32 {
@@ -171,11 +178,11 @@ mod tests {
         assert_eq!(size_of::<Material>(), 96);
         assert_eq!(offset_of!(Material, absorb), 80);
         assert_eq!(size_of::<Light>(), 48);
-        assert_eq!(size_of::<BvhChild>(), 32);
-        assert_eq!(std::mem::align_of::<BvhChild>(), 32);
-        assert_eq!(offset_of!(BvhChild, link), 12);
-        assert_eq!(offset_of!(BvhChild, hi), 16);
-        assert_eq!(offset_of!(BvhChild, count), 28);
+        assert_eq!(size_of::<BvhNode>(), 128);
+        assert_eq!(std::mem::align_of::<BvhNode>(), 64);
+        assert_eq!(offset_of!(BvhNode, hi), 48);
+        assert_eq!(offset_of!(BvhNode, link), 96);
+        assert_eq!(offset_of!(BvhNode, count), 112);
     }
 
     #[test]

@@ -14,7 +14,7 @@ use crate::scene::{Scene, Shape};
 use glam::DVec3;
 use grid::Bounds;
 pub use grid::{Progress, Stage};
-use layout::{BvhChild, Globals, Light, Material, Prim};
+use layout::{BvhNode, Globals, Light, Material, Prim};
 pub use pages::Pages;
 use std::time::Instant;
 
@@ -214,8 +214,8 @@ pub struct AccelInfo {
     pub build_seconds: f64,
     /// Bytes the structure keeps for the render.
     pub bytes: usize,
-    /// BVH only (0 for the grid): interior nodes, leaves, the deepest
-    /// interior node's depth, the most primitives in a leaf.
+    /// BVH only (0 for the grid): nodes (4-wide), leaves, the deepest
+    /// node's depth, the most primitives in a leaf.
     pub nodes: usize,
     pub leaves: usize,
     pub depth: u32,
@@ -256,8 +256,8 @@ pub struct Packed {
     pub lights: Vec<Light>,
     pub cell_start: Pages<u32>,
     pub refs: Pages<u32>,
-    /// Two entries per interior node (`BvhChild`); empty with the grid.
-    pub bvh: Pages<BvhChild>,
+    /// The BVH's 4-wide nodes (`BvhNode`); empty with the grid.
+    pub bvh: Pages<BvhNode>,
     /// Light buffers (`lightbuf`): `cells + 1` offsets into `lb_refs`, and
     /// the primitive indices; empty without them (`globals.flags.w` = 0).
     pub lb_start: Pages<u32>,
@@ -1568,7 +1568,7 @@ mod tests {
             assert!(!p.accel.auto);
             let bvh = want == Accel::Bvh;
             assert_eq!(p.bvh.is_empty(), !bvh);
-            assert_eq!(p.globals.flags[2] as usize * 2, p.bvh.len());
+            assert_eq!(p.globals.flags[2] as usize, p.bvh.len());
             assert_eq!(
                 p.globals.grid_min[3] == 1.0,
                 !bvh,
@@ -1577,8 +1577,8 @@ mod tests {
             assert_eq!(p.grid.refs > 0, !bvh);
             assert!(p.accel.bytes > 0 && p.accel.build_seconds >= 0.0);
             if bvh {
-                assert!(p.accel.nodes > 0 && p.accel.leaves > p.accel.nodes / 2);
-                assert_eq!(p.accel.bytes, p.bvh.len() * 32);
+                assert!(p.accel.nodes > 0 && p.accel.leaves > p.accel.nodes);
+                assert_eq!(p.accel.bytes, p.bvh.len() * 128);
             }
         }
         let p = pack(&s, &Settings::default()).unwrap();

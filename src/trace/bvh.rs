@@ -1,55 +1,67 @@
 //! Traversal of the bounding-volume hierarchy: twin of `shaders/bvh.glsl`.
 //!
-//! One traversal serves both queries (`query.rs`). At an interior node
-//! both children's boxes are tested against the segment 0..`q.t`; the
-//! nearer child (by where the ray enters its box) is walked first and the
-//! other is pushed with its entry distance, so that a closest-hit query
-//! drops it when it pops it if a hit nearer than that was found
-//! meanwhile. A leaf hands its primitives to `query_prim`. The stack has
-//! `BVH_STACK_SIZE` entries, which the build's depth bound keeps enough
-//! (`pack::bvh`).
+//! One traversal serves both queries (`query.rs`). At a node the boxes of
+//! its (up to four) children are tested against the segment 0..`q.t`
+//! with four-wide arithmetic (`bvh_entries`); the children the ray enters
+//! are ordered by where it enters them (lane order on a tie), the nearest
+//! is walked first and the others are pushed, farthest first, with their
+//! entry distances, so that a closest-hit query drops one when it pops it
+//! if a hit nearer than that was found meanwhile. A leaf hands its
+//! primitives to `query_prim`. The stack has `BVH_STACK_SIZE` entries,
+//! which the build keeps enough (`pack::bvh::collapse`).
 
 use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
-use crate::constants::BVH_STACK_SIZE;
-use crate::pack::layout::BvhChild;
+use crate::constants::{BVH_STACK_SIZE, BVH_WIDTH};
+use crate::pack::layout::BvhNode;
 
-/// Where the ray enters the child's box within the segment 0..`tmax`
-/// (0 from inside), or `None` when it misses it. Slabs, the near plane
-/// chosen by the sign of 1/d. The bounds are narrowed by comparisons
-/// (`tn > t0`), which ignore a NaN: a ray parallel to an axis (1/d = ±∞)
-/// whose origin lies on one of the box's planes (0·∞) counts as inside
-/// that slab, as it is. A parallel ray outside a slab gets t0 = +∞, a
-/// miss unless `tmax` is +∞ too; then the box is entered "at +∞" and
-/// walked for nothing, never wrongly skipped.
+const W: usize = BVH_WIDTH as usize;
+
+/// Where the ray enters each child's box within the segment 0..`tmax`
+/// (0 from inside), and whether it enters it at all. Slabs, the near
+/// plane chosen by the sign of 1/d, the four lanes side by side (the
+/// compiler turns the lane loops into vector instructions). The bounds
+/// are narrowed by comparisons (`tn > t0`), which ignore a NaN: a ray
+/// parallel to an axis (1/d = ±∞) whose origin lies on one of the box's
+/// planes (0·∞) counts as inside that slab, as it is. A parallel ray
+/// outside a slab gets t0 = +∞, a miss unless `tmax` is +∞ too; then the
+/// box is entered "at +∞" and walked for nothing, never wrongly skipped.
+/// An empty lane (lo = +∞, hi = −∞) is missed by every ray without a NaN.
 #[inline(always)]
-pub fn bvh_entry<F: Real>(c: &BvhChild, ray: &Ray<F>, pre: &RayPre<F>, tmax: F) -> Option<F> {
-    let mut t0 = F::zero();
-    let mut t1 = tmax;
+pub fn bvh_entries<F: Real>(
+    n: &BvhNode,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    tmax: F,
+) -> ([F; W], [bool; W]) {
+    let mut t0 = [F::zero(); W];
+    let mut t1 = [tmax; W];
     for i in 0..3 {
         let o = ray.o.get(i);
         let inv = pre.inv_d.get(i);
         let (near, far) = if inv >= F::zero() {
-            (F::of(c.lo[i]), F::of(c.hi[i]))
+            (&n.lo[i], &n.hi[i])
         } else {
-            (F::of(c.hi[i]), F::of(c.lo[i]))
+            (&n.hi[i], &n.lo[i])
         };
-        let tn = (near - o) * inv;
-        let tf = (far - o) * inv;
-        if tn > t0 {
-            t0 = tn;
-        }
-        if tf < t1 {
-            t1 = tf;
+        for k in 0..W {
+            let tn = (F::of(near[k]) - o) * inv;
+            let tf = (F::of(far[k]) - o) * inv;
+            if tn > t0[k] {
+                t0[k] = tn;
+            }
+            if tf < t1[k] {
+                t1[k] = tf;
+            }
         }
     }
-    if t0 <= t1 {
-        Some(t0)
-    } else {
-        None
+    let mut hit = [false; W];
+    for k in 0..W {
+        hit[k] = t0[k] <= t1[k];
     }
+    (t0, hit)
 }
 
 /// Walks the hierarchy for query `q`: every leaf whose box (and whose
@@ -68,17 +80,17 @@ pub fn bvh_traverse<F: Real>(
     if nodes == 0 {
         return;
     }
-    // The pushed children: their entries' indices and entry distances.
+    // The pushed children: node · BVH_WIDTH + lane, and entry distances.
     let mut stack_slot = [0u32; BVH_STACK_SIZE as usize];
     let mut stack_t = [F::zero(); BVH_STACK_SIZE as usize];
     let mut sp = 0usize;
-    // The current child: the root (interior node 0) first.
+    // The current child: the root (node 0) first.
     let mut link = 0u32;
     let mut count = 0u32;
     let mut t = F::zero();
-    // Each child entry becomes the current one at most once, so a walk
-    // takes at most 2·nodes + 1 steps (the bound keeps a NaN ray finite).
-    for _ in 0..2 * nodes as u64 + 1 {
+    // Each child becomes the current one at most once, so a walk takes at
+    // most BVH_WIDTH·nodes + 1 steps (the bound keeps a NaN ray finite).
+    for _ in 0..W as u64 * nodes as u64 + 1 {
         if t <= q.t {
             if count > 0 {
                 let first = link as usize;
@@ -89,34 +101,38 @@ pub fn bvh_traverse<F: Real>(
                 }
             } else {
                 work.nodes += 1;
-                let k = 2 * link as usize;
-                let [c0, c1] = &s.bvh[k..k + 2] else {
+                let Some(node) = s.bvh.get(link as usize) else {
                     return;
                 };
-                let e0 = bvh_entry(c0, ray, pre, q.t);
-                let e1 = bvh_entry(c1, ray, pre, q.t);
-                let next = match (e0, e1) {
-                    (Some(t0), Some(t1)) => {
-                        // Nearer first (the first child on a tie); the
-                        // other waits on the stack.
-                        let (near, tn, far, tf) = if t1 < t0 {
-                            (c1, t1, k, t0)
-                        } else {
-                            (c0, t0, k + 1, t1)
-                        };
-                        stack_slot[sp] = far as u32;
-                        stack_t[sp] = tf;
-                        sp += 1;
-                        Some((near, tn))
+                let (te, hit) = bvh_entries(node, ray, pre, q.t);
+                // The lanes entered (not empty ones), nearest first, lane
+                // order on a tie: the order the shader's sorting network
+                // gives (bvh.glsl, which must not loop here); an insertion
+                // sort is cheaper on the CPU, where most nodes have one or
+                // two children entered.
+                let mut order = [0usize; W];
+                let mut m = 0;
+                for k in 0..W {
+                    if hit[k] && (node.count[k] | node.link[k]) != 0 {
+                        let mut j = m;
+                        while j > 0 && te[k] < te[order[j - 1]] {
+                            order[j] = order[j - 1];
+                            j -= 1;
+                        }
+                        order[j] = k;
+                        m += 1;
                     }
-                    (Some(t0), None) => Some((c0, t0)),
-                    (None, Some(t1)) => Some((c1, t1)),
-                    (None, None) => None,
-                };
-                if let Some((c, tc)) = next {
-                    link = c.link;
-                    count = c.count;
-                    t = tc;
+                }
+                if m > 0 {
+                    for j in (1..m).rev() {
+                        stack_slot[sp] = link * BVH_WIDTH + order[j] as u32;
+                        stack_t[sp] = te[order[j]];
+                        sp += 1;
+                    }
+                    let k = order[0];
+                    count = node.count[k];
+                    link = node.link[k];
+                    t = te[k];
                     continue;
                 }
             }
@@ -125,9 +141,10 @@ pub fn bvh_traverse<F: Real>(
             return;
         }
         sp -= 1;
-        let c = &s.bvh[stack_slot[sp] as usize];
-        link = c.link;
-        count = c.count;
+        let slot = stack_slot[sp] as usize;
+        let n = &s.bvh[slot / W];
+        link = n.link[slot % W];
+        count = n.count[slot % W];
         t = stack_t[sp];
     }
 }

@@ -12,7 +12,7 @@ pub mod sample;
 pub mod shade;
 pub mod tree;
 
-use crate::pack::layout::{BvhChild, Globals, Light, Material, Prim};
+use crate::pack::layout::{BvhNode, Globals, Light, Material, Prim};
 use crate::pack::Packed;
 
 /// Borrowed view of the packed arrays: what the shader's buffers hold.
@@ -25,7 +25,7 @@ pub struct SceneView<'a> {
     pub lights: &'a [Light],
     pub cell_start: &'a [u32],
     pub refs: &'a [u32],
-    pub bvh: &'a [BvhChild],
+    pub bvh: &'a [BvhNode],
     pub lb_start: &'a [u32],
     pub lb_refs: &'a [u32],
 }

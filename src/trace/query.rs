@@ -23,7 +23,7 @@ pub struct Work {
     pub tests: u64,
     /// Grid cells visited.
     pub cells: u64,
-    /// BVH interior nodes visited (each one tests its two children's boxes).
+    /// BVH nodes visited (each one tests its up to four children's boxes).
     pub nodes: u64,
     /// Shadow cache (Haines & Greenberg's "last blocker"): per light, 1 + the
     /// index of the opaque primitive that last blocked a feeler to it (0:
