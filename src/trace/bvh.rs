@@ -28,14 +28,11 @@ const W: usize = BVH_WIDTH as usize;
 /// planes (0·∞) counts as inside that slab, as it is. A parallel ray
 /// outside a slab gets t0 = +∞, a miss unless `tmax` is +∞ too; then the
 /// box is entered "at +∞" and walked for nothing, never wrongly skipped.
-/// An empty lane (lo = +∞, hi = −∞) is missed by every ray without a NaN.
+/// An empty lane (lo = +∞, hi = −∞) is missed by every ray without a NaN
+/// (the walk turns such rays away first). The lanes entered as bits of
+/// a mask.
 #[inline(always)]
-pub fn bvh_entries<F: Real>(
-    n: &BvhNode,
-    ray: &Ray<F>,
-    pre: &RayPre<F>,
-    tmax: F,
-) -> ([F; W], [bool; W]) {
+pub fn bvh_entries<F: Real>(n: &BvhNode, ray: &Ray<F>, pre: &RayPre<F>, tmax: F) -> ([F; W], u32) {
     let mut t0 = [F::zero(); W];
     let mut t1 = [tmax; W];
     for i in 0..3 {
@@ -57,11 +54,11 @@ pub fn bvh_entries<F: Real>(
             }
         }
     }
-    let mut hit = [false; W];
+    let mut mask = 0;
     for k in 0..W {
-        hit[k] = t0[k] <= t1[k];
+        mask |= ((t0[k] <= t1[k]) as u32) << k;
     }
-    (t0, hit)
+    (t0, mask)
 }
 
 /// Walks the hierarchy for query `q`: every leaf whose box (and whose
@@ -78,6 +75,13 @@ pub fn bvh_traverse<F: Real>(
 ) {
     let nodes = s.globals.flags[2];
     if nodes == 0 {
+        return;
+    }
+    // A ray with a NaN meets nothing (every test compares false), and it
+    // is the only kind that enters an empty lane: turned away here, so no
+    // lane needs checking below. (The shader checks the lanes instead: a
+    // GPU compiler may assume no NaN.)
+    if (0..3).any(|i| ray.o.get(i).is_nan() || pre.inv_d.get(i).is_nan()) {
         return;
     }
     // The pushed children: node · BVH_WIDTH + lane, and entry distances.
@@ -104,16 +108,26 @@ pub fn bvh_traverse<F: Real>(
                 let Some(node) = s.bvh.get(link as usize) else {
                     return;
                 };
-                let (te, hit) = bvh_entries(node, ray, pre, q.t);
-                // The lanes entered (not empty ones), nearest first, lane
-                // order on a tie: the order the shader's sorting network
-                // gives (bvh.glsl, which must not loop here); an insertion
-                // sort is cheaper on the CPU, where most nodes have one or
-                // two children entered.
-                let mut order = [0usize; W];
-                let mut m = 0;
-                for k in 0..W {
-                    if hit[k] && (node.count[k] | node.link[k]) != 0 {
+                let (te, mut mask) = bvh_entries(node, ray, pre, q.t);
+                if mask.is_power_of_two() {
+                    // One child entered (the commonest case).
+                    let k = mask.trailing_zeros() as usize;
+                    count = node.count[k];
+                    link = node.link[k];
+                    t = te[k];
+                    continue;
+                }
+                if mask != 0 {
+                    // The lanes entered, nearest first, lane order on a
+                    // tie: the order the shader's sorting network gives
+                    // (bvh.glsl, which must not loop here); an insertion
+                    // sort over the mask's bits is cheaper on the CPU,
+                    // where most nodes have one or two children entered.
+                    let mut order = [0usize; W];
+                    let mut m = 0;
+                    while mask != 0 {
+                        let k = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
                         let mut j = m;
                         while j > 0 && te[k] < te[order[j - 1]] {
                             order[j] = order[j - 1];
@@ -122,8 +136,6 @@ pub fn bvh_traverse<F: Real>(
                         order[j] = k;
                         m += 1;
                     }
-                }
-                if m > 0 {
                     for j in (1..m).rev() {
                         stack_slot[sp] = link * BVH_WIDTH + order[j] as u32;
                         stack_t[sp] = te[order[j]];
