@@ -39,10 +39,12 @@ pub struct Case {
 /// Who renders.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Engine {
-    /// `whitted render --backend cpu|gpu [--accel A] [--gpu-math M]`.
+    /// `whitted render --backend cpu|gpu [--accel A] [--shadows S]
+    /// [--gpu-math M]`.
     Whitted {
         backend: String,
         accel: Option<String>,
+        shadows: Option<String>,
         /// The GPU kernel (None: the default, exact).
         gpu_math: Option<crate::gpu::GpuMath>,
         label: String,
@@ -292,6 +294,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
         Engine::Whitted {
             backend,
             accel,
+            shadows,
             gpu_math,
             ..
         } => {
@@ -303,6 +306,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                 .arg(image)
                 .args(["--backend", backend])
                 .args(accel.iter().flat_map(|a| ["--accel", a.as_str()]))
+                .args(shadows.iter().flat_map(|s| ["--shadows", s.as_str()]))
                 .args(gpu_math.iter().flat_map(|m| ["--gpu-math", m.name()]))
                 .arg("--stats")
                 .arg(&stats)

@@ -197,3 +197,47 @@ fn bench_times_each_structure() {
         assert!(num(b, "nodes_per_ray") > 0.0 && num(b, "cells_per_ray") == 0.0);
     }
 }
+
+/// `--shadows plain,lightbuffer`: each backend once per shadow method,
+/// labelled by it; the light buffers are exact, so the rays are the same
+/// to the last one.
+#[test]
+fn bench_times_each_shadow_method() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("s.csv");
+    let (text, header, rows) = bench_csv(
+        &[
+            "-q",
+            "bench",
+            "--suite",
+            "spd",
+            "--size",
+            "1",
+            "--only",
+            "balls",
+            "--runs",
+            "1",
+            "--warmup",
+            "0",
+            "--resolution",
+            "32x32",
+            "--backends",
+            "cpu",
+            "--accel",
+            "bvh",
+            "--shadows",
+            "plain,lightbuffer",
+        ],
+        &csv,
+    );
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    assert_eq!(rows.len(), 2, "{text}");
+    let of = |engine: &str| {
+        rows.iter()
+            .find(|x| &x[col("engine")] == engine)
+            .unwrap_or_else(|| panic!("{engine}: {text}"))
+    };
+    let (p, l) = (of("cpu/bvh/plain"), of("cpu/bvh/lightbuffer"));
+    assert_eq!(&p[col("rays")], &l[col("rays")], "{text}");
+    assert!(p[col("rays")].parse::<u64>().unwrap() > 0);
+}

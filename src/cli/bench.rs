@@ -54,6 +54,12 @@ pub struct BenchArgs {
     /// only (docs/method.md, "Choosing the structure").
     #[arg(long, value_delimiter = ',', value_parser = ["grid", "bvh", "auto"])]
     pub accel: Vec<String>,
+    /// Shadow methods to time (comma-separated, e.g. plain,lightbuffer):
+    /// every backend (and structure) once per method, labelled e.g.
+    /// cpu/lightbuffer; default: plain only (`render --shadows`, and
+    /// docs/method.md, "Light buffers").
+    #[arg(long, value_delimiter = ',', value_parser = ["plain", "lightbuffer"])]
+    pub shadows: Vec<String>,
     /// GPU kernels to time (comma-separated, e.g. exact,fast): the gpu
     /// backend once per kernel, the fast one labelled e.g.
     /// gpu:llvmpipe/fast; default: exact only (`render --gpu-math`).
@@ -242,20 +248,28 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
                 GpuMath::Fast => format!("{base}/fast"),
             };
             let gpu_math = (b == "gpu").then_some(math);
-            if a.accel.is_empty() {
-                out.push(Engine::Whitted {
-                    backend: b.clone(),
-                    accel: None,
-                    gpu_math,
-                    label,
-                });
+            let accels: Vec<Option<&String>> = if a.accel.is_empty() {
+                vec![None]
             } else {
-                for accel in &a.accel {
+                a.accel.iter().map(Some).collect()
+            };
+            let shadows: Vec<Option<&String>> = if a.shadows.is_empty() {
+                vec![None]
+            } else {
+                a.shadows.iter().map(Some).collect()
+            };
+            for accel in &accels {
+                for sh in &shadows {
+                    let mut l = label.clone();
+                    for part in [accel, sh].into_iter().flatten() {
+                        l = format!("{l}/{part}");
+                    }
                     out.push(Engine::Whitted {
                         backend: b.clone(),
-                        accel: Some(accel.clone()),
+                        accel: accel.cloned(),
+                        shadows: sh.cloned(),
                         gpu_math,
-                        label: format!("{label}/{accel}"),
+                        label: l,
                     });
                 }
             }
