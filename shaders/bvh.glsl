@@ -3,7 +3,8 @@
 // One traversal serves both queries (query.glsl). At a node the boxes of
 // its (up to four) children are tested against the segment 0..q.t, four
 // lanes at once (bvh_entries); the children the ray enters are ordered by
-// where it enters them (lane order on a tie), the nearest is walked first
+// where it enters them (lane order on a tie; a shadow feeler takes them
+// in lane order), the nearest is walked first
 // and the others are pushed, farthest first, with their entry distances,
 // so that a closest-hit query drops one when it pops it if a hit nearer
 // than that was found meanwhile. A leaf hands its primitives to
@@ -103,11 +104,15 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
                 bvec4 enter = bvec4(uvec4(hit) & uvec4(real));
                 uint m = uint(enter.x) + uint(enter.y) + uint(enter.z) + uint(enter.w);
                 if (m > 0u) {
+                    // A feeler takes them in lane order (all at distance
+                    // 0: its segment never shrinks, so the order cannot
+                    // save a test, and sorting by distance would cost).
                     float inf = uintBitsToFloat(0x7f800000u);
-                    float s0 = enter.x ? te.x : inf;
-                    float s1 = enter.y ? te.y : inf;
-                    float s2 = enter.z ? te.z : inf;
-                    float s3 = enter.w ? te.w : inf;
+                    vec4 d = q.shadow ? vec4(0.0) : te;
+                    float s0 = enter.x ? d.x : inf;
+                    float s1 = enter.y ? d.y : inf;
+                    float s2 = enter.z ? d.z : inf;
+                    float s3 = enter.w ? d.w : inf;
                     uint k0 = enter.x ? 0u : 4u;
                     uint k1 = enter.y ? 1u : 5u;
                     uint k2 = enter.z ? 2u : 6u;
