@@ -45,6 +45,32 @@ fn bench_csv(
     (text, header, rows)
 }
 
+/// `bench_csv` on the SPD scenes at size 1, 32×32, CPU only, one run and
+/// no warm-up, with `extra` arguments.
+fn small_spd_bench(
+    extra: &[&str],
+    csv: &std::path::Path,
+) -> (String, csv::StringRecord, Vec<csv::StringRecord>) {
+    let mut args = vec![
+        "-q",
+        "bench",
+        "--suite",
+        "spd",
+        "--size",
+        "1",
+        "--runs",
+        "1",
+        "--warmup",
+        "0",
+        "--resolution",
+        "32x32",
+        "--backends",
+        "cpu",
+    ];
+    args.extend_from_slice(extra);
+    bench_csv(&args, csv)
+}
+
 #[test]
 fn bench_writes_a_row_per_case_and_engine() {
     let d = tempfile::tempdir().unwrap();
@@ -149,29 +175,8 @@ fn bench_refuses_bad_requests_before_work() {
 fn bench_times_each_structure() {
     let d = tempfile::tempdir().unwrap();
     let csv = d.path().join("a.csv");
-    let (text, header, rows) = bench_csv(
-        &[
-            "-q",
-            "bench",
-            "--suite",
-            "spd",
-            "--size",
-            "1",
-            "--only",
-            "teapot,balls",
-            "--runs",
-            "1",
-            "--warmup",
-            "0",
-            "--resolution",
-            "32x32",
-            "--backends",
-            "cpu",
-            "--accel",
-            "grid,bvh",
-        ],
-        &csv,
-    );
+    let (text, header, rows) =
+        small_spd_bench(&["--only", "teapot,balls", "--accel", "grid,bvh"], &csv);
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
     assert_eq!(rows.len(), 4, "{text}");
     for case in ["teapot-1", "balls-1"] {
@@ -205,24 +210,10 @@ fn bench_times_each_structure() {
 fn bench_times_each_shadow_method() {
     let d = tempfile::tempdir().unwrap();
     let csv = d.path().join("s.csv");
-    let (text, header, rows) = bench_csv(
+    let (text, header, rows) = small_spd_bench(
         &[
-            "-q",
-            "bench",
-            "--suite",
-            "spd",
-            "--size",
-            "1",
             "--only",
             "balls",
-            "--runs",
-            "1",
-            "--warmup",
-            "0",
-            "--resolution",
-            "32x32",
-            "--backends",
-            "cpu",
             "--accel",
             "bvh",
             "--shadows",

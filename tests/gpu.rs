@@ -1013,6 +1013,35 @@ fn the_host_names_what_drives_the_loops() {
     assert_eq!(loops::certain_cut(&p), None);
 }
 
+/// With light buffers on SPD gears at its default size (a few cells of
+/// far lights list hundreds of primitives: 981), the longest cell list is what
+/// the host names, with `--shadows plain` as the remedy; plain feelers on
+/// the same scene name something else. Needs no device.
+#[test]
+fn the_host_names_a_crowded_light_buffer_cell() {
+    let gears = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Gears, None).unwrap();
+    let settings = |shadows| Settings {
+        shadows,
+        ..whitted::pack::Preset::Spd.settings()
+    };
+    let p = whitted::pack::pack(&gears, &settings(Shadows::LightBuffer)).unwrap();
+    let load = LoopLoad::of(&p);
+    let Driver::LightBufferCell(n) = load.largest() else {
+        panic!("{:?}", load.drivers());
+    };
+    assert!(n > 500 && n <= p.prims.len() as u32, "{n}");
+    assert_eq!(load.largest().remedy(), "use --shadows plain");
+    assert!(load
+        .largest()
+        .describe()
+        .contains("a light-buffer cell listing"));
+    let plain = whitted::pack::pack(&gears, &settings(Shadows::Plain)).unwrap();
+    let lp = LoopLoad::of(&plain);
+    assert_eq!(lp.lb_refs, 0);
+    assert!(lp.worst() < load.worst());
+    assert!(!matches!(lp.largest(), Driver::LightBufferCell(_)));
+}
+
 /// On llvmpipe the 100 000-vertex polygon is refused before dispatching,
 /// naming it and where; any other device renders it like the CPU.
 #[test]

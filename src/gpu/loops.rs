@@ -67,6 +67,9 @@ pub enum Driver {
     Unbounded(u32),
     /// The most primitives one grid cell lists.
     CellRefs(u32),
+    /// The most primitives one light-buffer cell lists: every shadow
+    /// feeler in that direction walks them all.
+    LightBufferCell(u32),
     /// The most cells a ray steps through (the grid's x + y + z).
     GridCells { dims: [u32; 3] },
 }
@@ -108,6 +111,10 @@ impl Driver {
                 "a grid cell listing {}",
                 super::plural(*n as u64, "primitive", "primitives")
             ),
+            Driver::LightBufferCell(n) => format!(
+                "a light-buffer cell listing {}, all tested by every shadow feeler in its direction",
+                super::plural(*n as u64, "primitive", "primitives")
+            ),
             Driver::GridCells { dims } => format!(
                 "a {}x{}x{} grid, through up to {} cells of which a ray steps",
                 dims[0],
@@ -127,6 +134,7 @@ impl Driver {
             Driver::Polygon { .. } => "split the polygon into smaller ones or triangles",
             Driver::Unbounded(_) => "use fewer unbounded primitives",
             Driver::CellRefs(_) => "use a finer --grid",
+            Driver::LightBufferCell(_) => "use --shadows plain",
             Driver::GridCells { .. } => "use a coarser --grid",
         }
     }
@@ -147,6 +155,9 @@ pub struct LoopLoad {
     pub polygon: Option<(u32, u32, [f32; 3])>,
     pub unbounded: u32,
     pub cell_refs: u32,
+    /// The most primitives one light-buffer cell lists (0: no light
+    /// buffers).
+    pub lb_refs: u32,
     pub dims: [u32; 3],
     /// With the BVH: a typical walk's steps, `BVH_WIDTH` per level of the
     /// deepest path (a node, and its other children pushed and popped)
@@ -184,6 +195,15 @@ impl LoopLoad {
             .map(|w| w[1].saturating_sub(w[0]))
             .max()
             .unwrap_or(0);
+        let lb_refs = if g.flags[3] > 0 {
+            p.lb_start
+                .windows(2)
+                .map(|w| w[1].saturating_sub(w[0]))
+                .max()
+                .unwrap_or(0)
+        } else {
+            0
+        };
         let has_grid = g.grid_min[3] != 0.0;
         LoopLoad {
             samples: if corners { 1 } else { g.image[2].max(1) },
@@ -193,6 +213,7 @@ impl LoopLoad {
             polygon,
             unbounded: g.counts[1].saturating_sub(g.counts[0]),
             cell_refs,
+            lb_refs,
             dims: if has_grid {
                 [g.grid_dims[0], g.grid_dims[1], g.grid_dims[2]]
             } else {
@@ -220,17 +241,30 @@ impl LoopLoad {
             .max(1.0)
     }
 
+    /// Iterations one shadow feeler makes at most: a traversal, or with
+    /// light buffers the unbounded primitives, the longest cell list and
+    /// the largest polygon once.
+    fn feeler(&self) -> f64 {
+        if self.lb_refs == 0 {
+            return self.traversal();
+        }
+        let v = self.polygon.map_or(0, |(_, n, _)| n);
+        (self.unbounded as f64 + self.lb_refs as f64 + v as f64).max(1.0)
+    }
+
     /// A (loose) upper bound of the loop iterations of one invocation: per
     /// sample, per ray of its tree, a traversal plus, at the hit, the light
-    /// loop with one feeler traversal per light.
+    /// loop with one feeler per light.
     pub fn worst(&self) -> f64 {
         let c = self.traversal();
         let l = self.lights as f64;
-        self.samples as f64 * self.rays as f64 * ((1.0 + l) * c + l)
+        self.samples as f64 * self.rays as f64 * (c + l * self.feeler() + l)
     }
 
     /// Each driver with the factor by which it multiplies `worst` (its
-    /// value against the smallest it can take), largest first.
+    /// value against the smallest it can take; light buffers against
+    /// plain feelers), largest first, but light buffers that lengthen the
+    /// loops first of all.
     pub fn drivers(&self) -> Vec<(Driver, f64)> {
         let c = self.traversal();
         let l = self.lights as f64;
@@ -247,8 +281,17 @@ impl LoopLoad {
                 self.rays as f64,
             ),
         ];
+        let f = self.feeler();
         if self.lights > 0 {
-            v.push((Driver::Lights(self.lights), ((1.0 + l) * c + l) / c));
+            // With plain feelers (the light buffers' share is their own).
+            v.push((Driver::Lights(self.lights), (c + l * c + l) / c));
+        }
+        if self.lb_refs > 0 && self.lights > 0 {
+            // Against plain feelers (each one a traversal).
+            v.push((
+                Driver::LightBufferCell(self.lb_refs),
+                (c + l * f + l) / (c + l * c + l),
+            ));
         }
         if let Some((prim, vertices, centre)) = self.polygon {
             v.push((
@@ -280,6 +323,16 @@ impl LoopLoad {
         }
         // Stable: on a tie the order above (the user's simplest lever) wins.
         v.sort_by(|a, b| b.1.total_cmp(&a.1));
+        // Light buffers that lengthen the loops come first whatever their
+        // factor: the one remedy that leaves the image as it is
+        // (`--shadows plain` gives the same pixels, bit for bit).
+        if let Some(i) = v
+            .iter()
+            .position(|(d, k)| matches!(d, Driver::LightBufferCell(_)) && *k > 1.0)
+        {
+            let lb = v.remove(i);
+            v.insert(0, lb);
+        }
         v
     }
 
