@@ -78,11 +78,16 @@ pub fn bvh_traverse<F: Real>(
     if nodes == 0 {
         return;
     }
-    // A ray with a NaN meets nothing (every test compares false), and it
-    // is the only kind that enters an empty lane: turned away here, so no
-    // lane needs checking below. (The shader checks the lanes instead: a
-    // GPU compiler may assume no NaN.)
-    if (0..3).any(|i| ray.o.get(i).is_nan() || pre.inv_d.get(i).is_nan()) {
+    // A ray with a NaN, or from an infinite origin (∞ − ∞ is a NaN in the
+    // slabs), is the only kind that can enter an empty lane. It has no
+    // meaningful answer (from an infinite origin it meets no bounded
+    // primitive; a NaN compares false, so a box test may take it as
+    // inside a slab), and the grid's walk gives up on it too: turned away
+    // here, so no lane needs checking below (tests/accel.rs,
+    // `rays_from_non_finite_origins_end_and_meet_nothing`). The shader
+    // checks the lanes instead: a GPU compiler may assume no NaN. 1/d may
+    // be infinite.
+    if (0..3).any(|i| !ray.o.get(i).is_finite() || pre.inv_d.get(i).is_nan()) {
         return;
     }
     // The pushed children: node · BVH_WIDTH + lane, and entry distances.
