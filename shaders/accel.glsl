@@ -12,11 +12,7 @@
 
 // Runs query q: the unbounded primitives, then the structure in use.
 void accel_traverse(Ray ray, RayPre pre, inout Query q) {
-    for (uint i = g.counts.x; i < g.counts.y; i++) {
-        if (query_prim(q, prims[i], i, ray, pre)) {
-            break;
-        }
-    }
+    query_unbounded(q, ray, pre);
     if (q.done) {
         return;
     }

@@ -64,11 +64,7 @@ bool lightbuf_cell(uint res, uint light, vec3 c, out uint cell) {
 // Runs shadow query q over the unbounded primitives, then the primitives
 // light buffer cell `cell` lists.
 void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell) {
-    for (uint i = g.counts.x; i < g.counts.y; i++) {
-        if (query_prim(q, prims[i], i, ray, pre)) {
-            break;
-        }
-    }
+    query_unbounded(q, ray, pre);
     if (q.done) {
         return;
     }

@@ -98,4 +98,16 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
     return q.done;
 }
 
+// Runs query q over the unbounded primitives (planes, unclipped quadrics,
+// giants), which every ray and feeler tests before any walk; afterwards
+// q.done says whether the query is done. (The loop ends with `break`:
+// see grid.glsl.)
+void query_unbounded(inout Query q, Ray ray, RayPre pre) {
+    for (uint i = g.counts.x; i < g.counts.y; i++) {
+        if (query_prim(q, prims[i], i, ray, pre)) {
+            break;
+        }
+    }
+}
+
 #endif

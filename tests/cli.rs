@@ -144,6 +144,19 @@ fn corner_sampling_renders() {
     assert_eq!(j["rays"]["eye"], 33 * 25);
 }
 
+/// Renders `scene` with `flag bogus` to `dir/x.png`, expects exit code 2;
+/// its stderr.
+fn render_with_bogus(dir: &Path, scene: &Path, flag: &str) -> String {
+    let a = whitted()
+        .args(["render", flag, "bogus"])
+        .arg(scene)
+        .arg("-o")
+        .arg(dir.join("x.png"))
+        .assert()
+        .code(2);
+    String::from_utf8_lossy(&a.get_output().stderr).to_string()
+}
+
 /// `--shadows lightbuffer` renders the plain image byte for byte and says
 /// so in `--stats`; anything else is a usage error (exit 2) naming the
 /// values.
@@ -172,14 +185,7 @@ fn shadows_option() {
         images.push(std::fs::read(&out).unwrap());
     }
     assert_eq!(images[0], images[1]);
-    let a = whitted()
-        .args(["render", "--shadows", "bogus"])
-        .arg(&scene)
-        .arg("-o")
-        .arg(dir.path().join("x.png"))
-        .assert()
-        .code(2);
-    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    let err = render_with_bogus(dir.path(), &scene, "--shadows");
     assert!(
         err.contains("bogus") && err.contains("plain") && err.contains("lightbuffer"),
         "{err}"
@@ -205,14 +211,7 @@ fn gpu_math_option() {
     let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
     assert!(err.contains("--gpu-math fast has no effect"), "{err}");
     assert!(out.exists());
-    let a = whitted()
-        .args(["render", "--gpu-math", "bogus"])
-        .arg(&scene)
-        .arg("-o")
-        .arg(dir.path().join("x.png"))
-        .assert()
-        .code(2);
-    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    let err = render_with_bogus(dir.path(), &scene, "--gpu-math");
     assert!(
         err.contains("bogus") && err.contains("exact") && err.contains("fast"),
         "{err}"

@@ -95,8 +95,11 @@ impl BvhChild {
     }
 
     fn half_area(&self) -> f64 {
-        let d = [0, 1, 2].map(|i| (self.hi[i] as f64 - self.lo[i] as f64).max(0.0));
-        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+        Aabb {
+            lo: self.lo,
+            hi: self.hi,
+        }
+        .half_area()
     }
 }
 
@@ -347,14 +350,12 @@ struct Ctx<'a> {
 /// What a subtree looks like (for `Bvh`'s fields).
 #[derive(Clone, Copy, Debug, Default)]
 struct Shape {
-    depth: u32,
     leaves: u32,
     max_leaf: u32,
 }
 
 impl Shape {
     fn join(&mut self, o: &Shape) {
-        self.depth = self.depth.max(o.depth);
         self.leaves += o.leaves;
         self.max_leaf = self.max_leaf.max(o.max_leaf);
     }
@@ -426,7 +427,6 @@ fn build_rec(
     } else {
         split
     };
-    shape.depth = shape.depth.max(depth);
     let (left, right) = items.split_at_mut(mid);
     let node = out.len() / 2;
     out.push(BvhChild::EMPTY);

@@ -9,7 +9,7 @@ use super::grid::grid_traverse;
 use super::intersect::{intersect, Hit, RayPre};
 use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
-use super::query::{query_prim, Query, Work};
+use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
 use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LIGHTS};
 
@@ -22,13 +22,10 @@ pub fn accel_traverse<F: Real>(
     q: &mut Query<F>,
     work: &mut Work,
 ) {
-    let g = s.globals;
-    for i in g.counts[0]..g.counts[1] {
-        if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
-            return;
-        }
+    if query_unbounded(s, q, ray, pre, work) {
+        return;
     }
-    if g.flags[1] == ACCEL_BVH {
+    if s.globals.flags[1] == ACCEL_BVH {
         bvh_traverse(s, ray, pre, q, work);
     } else {
         grid_traverse(s, ray, pre, q, work);

@@ -5,7 +5,7 @@
 
 use super::intersect::RayPre;
 use super::math::{Ray, Real, V3};
-use super::query::{query_prim, Query, Work};
+use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
 
 /// The index along a face's side of coordinate `u` (in [−1, 1]) at `res`
@@ -70,11 +70,8 @@ pub fn lightbuf_traverse<F: Real>(
     cell: u32,
     work: &mut Work,
 ) {
-    let g = s.globals;
-    for i in g.counts[0]..g.counts[1] {
-        if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
-            return;
-        }
+    if query_unbounded(s, q, ray, pre, work) {
+        return;
     }
     work.cells += 1;
     let start = s.lb_start[cell as usize];

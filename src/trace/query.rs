@@ -119,3 +119,23 @@ pub fn query_prim<F: Real>(
     }
     q.done
 }
+
+/// Runs query `q` over the unbounded primitives (planes, unclipped
+/// quadrics, giants), which every ray and feeler tests before any walk;
+/// true when the query is done.
+#[inline(always)]
+pub fn query_unbounded<F: Real>(
+    s: &SceneView,
+    q: &mut Query<F>,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    work: &mut Work,
+) -> bool {
+    let g = s.globals;
+    for i in g.counts[0]..g.counts[1] {
+        if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
+            return true;
+        }
+    }
+    false
+}
