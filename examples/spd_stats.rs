@@ -14,28 +14,6 @@ use whitted::gen::spd::{self, SpdScene};
 use whitted::pack::{self, Counting, Preset};
 use whitted::trace::RayStats;
 
-/// The SPD's table (Readme.txt, "Database Analysis"): eye rays that hit,
-/// reflected, refracted, shadow rays.
-fn published(s: SpdScene) -> [u64; 4] {
-    match s {
-        SpdScene::Balls => [263_169, 175_095, 0, 954_368],
-        SpdScene::Gears => [245_086, 304_643, 207_564, 2_246_955],
-        SpdScene::Mount => [173_125, 354_769, 354_769, 412_922],
-        SpdScene::Rings => [263_169, 315_236, 0, 1_085_002],
-        SpdScene::Teapot => [161_120, 225_248, 0, 407_656],
-        SpdScene::Tetra => [49_788, 0, 0, 46_112],
-        SpdScene::Tree => [169_836, 0, 0, 1_097_419],
-    }
-}
-
-/// The size of the published statistics.
-fn published_size(s: SpdScene) -> u32 {
-    match s {
-        SpdScene::Teapot => 12,
-        s => s.default_size(),
-    }
-}
-
 fn cell(ours: u64, theirs: u64) -> String {
     if theirs == 0 {
         if ours == 0 {
@@ -78,7 +56,8 @@ fn main() {
     println!("| scene (size) | ray kind | ours | SPD | difference |");
     println!("|---|---|---:|---:|---:|");
     for s in scenes {
-        let size = size.unwrap_or(published_size(s));
+        let (published_size, theirs) = s.published_stats();
+        let size = size.unwrap_or(published_size);
         let scene = spd::generate(s, Some(size)).unwrap();
         let mut p = pack::pack(&scene, &Preset::Spd.settings()).expect("fits");
         p.set_counting(counting);
@@ -91,7 +70,6 @@ fn main() {
             shadow,
         } = f.stats;
         assert_eq!(eye, 513 * 513);
-        let theirs = published(s);
         for (i, (kind, ours)) in [
             ("eye hit", eye_hit),
             ("reflect", reflect),

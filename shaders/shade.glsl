@@ -39,8 +39,10 @@ vec3 reflect_dir(vec3 i, vec3 n) {
 
 // Local intensity at p seen along d. n: shading normal facing the viewer;
 // ngf: geometric normal facing the viewer; front: the viewer is on the
-// outside of the surface.
-vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
+// outside of the surface. weighted: the ray carries weight; a ray of
+// weight 0 (SPD counting) only counts the feelers it would cast (Rust:
+// trace::shade::shade).
+vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front, bool weighted) {
     float eps = g.params.y;
     PRECISE vec3 c = mat.ka.xyz * g.ambient.xyz;
     vec3 v = -d;
@@ -63,6 +65,9 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front) {
         // (its rule 10): the transmission highlight's are not counted.
         if (facing || !spd_counting()) {
             stats.shadow += 1u;
+        }
+        if (!weighted) {
+            continue;
         }
         PRECISE vec3 o;
         if (dot3(l, ngf) > 0.0) {

@@ -11,7 +11,8 @@
 // Under SPD counting (spd_counting(), docs/spd.md) a surface with k_t > 0
 // also spawns a reflection ray where k_r = 0, as the SPD's reference
 // tracer did; its weight is 0, so it and its subtree are traced for the
-// ray counts only and add nothing to the image.
+// ray counts only and add nothing to the image: their closest hits are
+// found, their shadow feelers only counted.
 #ifndef WHITTED_TRACE_GLSL
 #define WHITTED_TRACE_GLSL
 
@@ -77,10 +78,11 @@ vec3 trace_ray(Ray ray) {
         bool front = dot3(e.d, ng) < 0.0;
         vec3 n = front ? ns : -ns;
         vec3 ngf = front ? ng : -ng;
-        vec3 local_ = shade(mat, p, e.d, n, ngf, front);
-        // A ray of weight 0 (SPD counting) adds nothing, even where its
-        // local intensity is not finite.
-        if (max_elem(w) > 0.0) {
+        // A ray of weight 0 (SPD counting) adds nothing: its feelers are
+        // counted, not traced, and its local intensity is not added.
+        bool weighted = max_elem(w) > 0.0;
+        vec3 local_ = shade(mat, p, e.d, n, ngf, front, weighted);
+        if (weighted) {
             color = color + w * local_;
         }
         if (e.depth >= max_depth) {

@@ -444,6 +444,38 @@ fn spd_counting_changes_counts_not_pixels() {
     );
 }
 
+/// Our counts under the SPD's procedure against its published table, for
+/// every scene at the table's size. The SPD expects a classical tracer
+/// within about 10 %; ours are within 0.4 % but gears' refracted rays
+/// (−3.2 %, docs/spd.md), so 4 % here: a change of what is counted or
+/// traced (the transmitter rule, the feelers of weight-0 rays, which are
+/// counted without being traced) shows.
+#[test]
+fn counts_match_the_spds_published_table() {
+    for s in SpdScene::ALL {
+        let (size, theirs) = s.published_stats();
+        let scene = spd::generate(s, Some(size)).unwrap();
+        let mut p = pack::pack(&scene, &pack::Preset::Spd.settings()).unwrap();
+        p.set_counting(pack::Preset::Spd.counting());
+        let f = whitted::cpu::render(&p, &|_, _| {});
+        let st = f.stats;
+        assert_eq!(st.eye, 513 * 513, "{s}");
+        let ours = [st.eye_hit, st.reflect, st.refract, st.shadow];
+        for (i, kind) in ["eye hit", "reflect", "refract", "shadow"]
+            .iter()
+            .enumerate()
+        {
+            let (o, t) = (ours[i] as f64, theirs[i] as f64);
+            let ok = if t == 0.0 {
+                o == 0.0
+            } else {
+                (o - t).abs() <= 0.04 * t
+            };
+            assert!(ok, "{s} ({size}): {kind} rays {o} against the SPD's {t}");
+        }
+    }
+}
+
 /// What the SPD's own files say of each scene at default size, recorded
 /// from `../shared/scenes/spd/*.nff` (`default_sizes_match_the_spds_files`
 /// checks the record against them where they are at hand), so that every

@@ -31,7 +31,10 @@ pub fn reflect_dir<F: Real>(i: V3<F>, n: V3<F>) -> V3<F> {
 
 /// Local intensity at `p` seen along `d`. `n`: shading normal facing the
 /// viewer; `ngf`: geometric normal facing the viewer; `front`: the viewer is
-/// on the outside of the surface.
+/// on the outside of the surface. `weighted`: the ray carries weight, so
+/// its local intensity is wanted; a ray of weight 0 (SPD counting) only
+/// counts the feelers it would cast, which a count does not need traced
+/// (it depends on the light's side alone), and returns 0.
 #[allow(clippy::too_many_arguments)]
 pub fn shade<F: Real>(
     s: &SceneView,
@@ -41,6 +44,7 @@ pub fn shade<F: Real>(
     n: V3<F>,
     ngf: V3<F>,
     front: bool,
+    weighted: bool,
     stats: &mut RayStats,
     work: &mut Work,
 ) -> V3<F> {
@@ -65,6 +69,9 @@ pub fn shade<F: Real>(
         // (its rule 10): the transmission highlight's are not counted.
         if facing || !s.spd_counting() {
             stats.shadow += 1;
+        }
+        if !weighted {
+            continue;
         }
         let o = if l.dot(ngf) > F::zero() {
             p + ngf * eps

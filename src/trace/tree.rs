@@ -11,7 +11,10 @@
 //! Under SPD counting (`SceneView::spd_counting`, docs/spd.md) a surface
 //! with k_t > 0 also spawns a reflection ray where k_r = 0, as the SPD's
 //! reference tracer did; its weight is 0, so it and its subtree are traced
-//! for the ray counts only and add nothing to the image.
+//! for the ray counts only and add nothing to the image: their closest
+//! hits are found (what they spawn depends on them), their shadow feelers
+//! only counted (whether a feeler is cast depends on the light's side, not
+//! on what it would meet).
 
 use super::accel::closest_hit;
 use super::intersect::{normals, RayPre};
@@ -93,10 +96,11 @@ pub fn trace_ray<F: Real>(
         let front = e.d.dot(ng) < F::zero();
         let n = if front { ns } else { -ns };
         let ngf = if front { ng } else { -ng };
-        let local = shade(s, mat, p, e.d, n, ngf, front, stats, work);
-        // A ray of weight 0 (SPD counting) adds nothing, even where its
-        // local intensity is not finite.
-        if w.max_elem() > F::zero() {
+        // A ray of weight 0 (SPD counting) adds nothing: its feelers are
+        // counted, not traced, and its local intensity is not added.
+        let weighted = w.max_elem() > F::zero();
+        let local = shade(s, mat, p, e.d, n, ngf, front, weighted, stats, work);
+        if weighted {
             color += w.mul_elem(local);
         }
         if e.depth >= max_depth {

@@ -145,6 +145,23 @@ impl SpdScene {
         }
     }
 
+    /// The SPD's published ray statistics (its Readme, "Database
+    /// Analysis"), for the 513 × 513 eye rays of its testing procedure:
+    /// the size they are for (the default, but 12 for the teapot) and the
+    /// eye rays that hit, reflected, refracted and shadow rays
+    /// (docs/spd.md, "The ray statistics").
+    pub fn published_stats(self) -> (u32, [u64; 4]) {
+        match self {
+            SpdScene::Balls => (4, [263_169, 175_095, 0, 954_368]),
+            SpdScene::Gears => (4, [245_086, 304_643, 207_564, 2_246_955]),
+            SpdScene::Mount => (6, [173_125, 354_769, 354_769, 412_922]),
+            SpdScene::Rings => (7, [263_169, 315_236, 0, 1_085_002]),
+            SpdScene::Teapot => (12, [161_120, 225_248, 0, 407_656]),
+            SpdScene::Tetra => (6, [49_788, 0, 0, 46_112]),
+            SpdScene::Tree => (11, [169_836, 0, 0, 1_097_419]),
+        }
+    }
+
     /// The number of primitives (scene objects, an NFF entity each) at
     /// `size`, or None when it does not fit in 64 bits.
     pub fn primitive_count(self, size: u32) -> Option<u64> {
