@@ -232,3 +232,22 @@ fn bench_times_each_shadow_method() {
     assert_eq!(&p[col("rays")], &l[col("rays")], "{text}");
     assert!(p[col("rays")].parse::<u64>().unwrap() > 0);
 }
+
+/// `--backends auto` times `render`'s default backend beside the CPU
+/// mirror: a row of its own, tracing the same rays.
+#[test]
+fn bench_times_the_default_backend() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("a.csv");
+    let (text, header, rows) = small_spd_bench(&["--only", "tetra", "--backends", "auto"], &csv);
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    assert_eq!(rows.len(), 2, "{text}");
+    let of = |engine: &str| {
+        rows.iter()
+            .find(|x| &x[col("engine")] == engine)
+            .unwrap_or_else(|| panic!("{engine}: {text}"))
+    };
+    let (c, a) = (of("cpu"), of("auto"));
+    assert_eq!(&c[col("rays")], &a[col("rays")], "{text}");
+    assert!(a[col("rays")].parse::<u64>().unwrap() > 0, "{text}");
+}

@@ -46,8 +46,10 @@ pub struct BenchArgs {
     pub warmup: u32,
     /// whitted backends to time (comma-separated): default every one this
     /// machine has (the CPU mirror, and the GPU when there is a Vulkan
-    /// device, lavapipe included).
-    #[arg(long, value_delimiter = ',', value_parser = ["cpu", "gpu"])]
+    /// device, lavapipe included). `auto` is `render`'s default: a real
+    /// GPU when there is one, otherwise the CPU mirror, its wall time
+    /// including the survey of the Vulkan devices that decides.
+    #[arg(long, value_delimiter = ',', value_parser = ["cpu", "gpu", "auto"])]
     pub backends: Vec<String>,
     /// Acceleration structures to time (comma-separated): every backend
     /// once per structure, labelled e.g. cpu/bvh; default: `auto`'s choice
@@ -239,7 +241,7 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
                 &maths,
             )
         } else {
-            ("cpu".into(), &[GpuMath::Exact])
+            (b.clone(), &[GpuMath::Exact])
         };
         for &math in maths {
             // The exact kernel keeps the plain label (the default, as before).

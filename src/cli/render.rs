@@ -87,6 +87,8 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     if a.backend == Backend::Cpu && a.gpu.gpu_math == crate::gpu::GpuMath::Fast {
         log::warn!("--gpu-math fast has no effect with --backend cpu");
     }
+    // Surveying the Vulkan devices for `auto` overlaps reading and packing.
+    let mut survey = run::DeviceSurvey::start(a.backend, a.precision);
     let scene = super::load_scene(ui, &a.scene)?;
     let t_load = t_start.elapsed().as_secs_f64();
     log::debug!("loaded {} in {t_load:.3} s", a.scene.display());
@@ -109,7 +111,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     let t_build = t_pack.elapsed().as_secs_f64();
     log::debug!("packed in {t_build:.3} s");
     let bar = Bar::new(ui, "rendering");
-    let r = run::render_packed(&packed, &opts, &|d, t| bar.set(d, t));
+    let r = run::render_packed_surveyed(&packed, &opts, &mut survey, &|d, t| bar.set(d, t));
     bar.finish();
     let mut r = r?;
     r.pack_seconds = t_build;
