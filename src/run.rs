@@ -138,24 +138,94 @@ pub fn render_with_progress(
     Ok(r)
 }
 
+/// What `auto` learns before choosing: the Vulkan devices, or that this
+/// machine has no GPU to survey.
+enum Surveyed {
+    Devices(Result<Vec<gpu::DeviceInfo>, GpuError>),
+    /// No GPU device file (`gpu_device_files`): only CPU implementations
+    /// of Vulkan (lavapipe), which `auto` passes over, could answer.
+    NoGpu,
+}
+
+/// Why `auto` renders on the CPU mirror of a machine without a GPU
+/// device file.
+pub const NO_GPU_FILE: &str = "no GPU here (no GPU device file such as /dev/dri/renderD*, \
+     /dev/nvidia*, /dev/dxg, /dev/kgsl* or /dev/mali*); --backend gpu uses a CPU Vulkan \
+     device such as lavapipe";
+
+/// The device files through which a Vulkan driver reaches a GPU on Linux,
+/// found under `dev` (normally /dev): DRM nodes (Mesa's drivers, AMD,
+/// Intel, virtio-gpu, Arm and Apple GPUs), NVIDIA's, WSL's `dxg`, and
+/// Android's Adreno (`kgsl`) and Mali nodes. Empty: no GPU can answer a
+/// survey, only a CPU implementation such as lavapipe.
+pub fn gpu_device_files(dev: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    let gpu_name = |n: &str| {
+        n.starts_with("nvidia") || n == "dxg" || n.starts_with("kgsl") || n.starts_with("mali")
+    };
+    for (dir, drm) in [(dev.to_path_buf(), false), (dev.join("dri"), true)] {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let n = name.to_string_lossy();
+            if (drm && (n.starts_with("renderD") || n.starts_with("card")))
+                || (!drm && gpu_name(&n))
+            {
+                out.push(e.path());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Surveys the Vulkan devices for `auto` (device index `device` asked
+/// for, or none), skipping the survey where it can only find CPU devices
+/// that `auto` would pass over: on Linux, with no GPU device file and no
+/// driver named through the Vulkan loader's environment. Loading the
+/// drivers is most of the cost of a survey (some 30 ms with Mesa's four,
+/// as long as rendering SPD tetra).
+fn survey_now(device: Option<usize>) -> Surveyed {
+    if device.is_none() && no_gpu_here() {
+        return Surveyed::NoGpu;
+    }
+    Surveyed::Devices(gpu::devices())
+}
+
+/// True where no survey can find a GPU: on Linux, no GPU device file
+/// under /dev and no driver named through the Vulkan loader's
+/// environment (`VK_ICD_FILENAMES`, `VK_DRIVER_FILES`,
+/// `VK_ADD_DRIVER_FILES`).
+pub fn no_gpu_here() -> bool {
+    let steered = ["VK_ICD_FILENAMES", "VK_DRIVER_FILES", "VK_ADD_DRIVER_FILES"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some());
+    cfg!(target_os = "linux")
+        && !steered
+        && gpu_device_files(std::path::Path::new("/dev")).is_empty()
+}
+
 /// `auto`'s survey of the Vulkan devices, begun on a thread of its own
-/// before the scene is read, so that loading the drivers (some 40 ms with
-/// Mesa's four here, half of a small scene's wall time) overlaps reading
-/// and packing the scene instead of following them. Dropping it waits for
-/// the thread: no driver is left half-loaded while the process exits.
-pub struct DeviceSurvey(Option<std::thread::JoinHandle<Result<Vec<gpu::DeviceInfo>, GpuError>>>);
+/// before the scene is read, so that loading the drivers overlaps reading
+/// and packing the scene instead of following them (`survey_now`).
+/// Dropping it waits for the thread: no driver is left half-loaded while
+/// the process exits.
+pub struct DeviceSurvey(Option<std::thread::JoinHandle<Surveyed>>);
 
 impl DeviceSurvey {
-    /// Starts the survey when `auto` will want it (f32 on `auto`); a
-    /// survey that cannot start leaves the question to `choose`.
-    pub fn start(backend: Backend, precision: Precision) -> Self {
+    /// Starts the survey when `auto` will want it (f32 on `auto`; device
+    /// index `device` asked for, or none); a survey that cannot start
+    /// leaves the question to `choose`.
+    pub fn start(backend: Backend, precision: Precision, device: Option<usize>) -> Self {
         if backend != Backend::Auto || precision != Precision::F32 {
             return DeviceSurvey(None);
         }
         DeviceSurvey(
             std::thread::Builder::new()
                 .name("device survey".into())
-                .spawn(gpu::devices)
+                .spawn(move || survey_now(device))
                 .ok(),
         )
     }
@@ -166,12 +236,11 @@ impl DeviceSurvey {
     }
 
     /// The survey's answer, waiting for it; None when none was started.
-    fn take(&mut self) -> Option<Result<Vec<gpu::DeviceInfo>, GpuError>> {
+    fn take(&mut self) -> Option<Surveyed> {
         let h = self.0.take()?;
-        Some(
-            h.join()
-                .unwrap_or_else(|_| Err(GpuError::Unusable("the device survey failed".into()))),
-        )
+        Some(h.join().unwrap_or_else(|_| {
+            Surveyed::Devices(Err(GpuError::Unusable("the device survey failed".into())))
+        }))
     }
 }
 
@@ -300,9 +369,10 @@ fn choose(opts: &RenderOptions, survey: &mut DeviceSurvey) -> Result<Chosen> {
             Gpu::new(g).map_err(|e| user(anyhow!("--backend gpu: {e}")))?,
         )),
         Backend::Auto => {
-            let devices = match survey.take().unwrap_or_else(gpu::devices) {
-                Ok(d) => d,
-                Err(e) => return Ok(Chosen::Cpu(Some(e.to_string()))),
+            let devices = match survey.take().unwrap_or_else(|| survey_now(g.device)) {
+                Surveyed::NoGpu => return Ok(Chosen::Cpu(Some(NO_GPU_FILE.into()))),
+                Surveyed::Devices(Ok(d)) => d,
+                Surveyed::Devices(Err(e)) => return Ok(Chosen::Cpu(Some(e.to_string()))),
             };
             let pick = match g.device {
                 Some(i) => gpu::choose(&devices, Some(i), false),
@@ -362,4 +432,34 @@ pub fn auto_reason(devices: &[gpu::DeviceInfo]) -> String {
             .collect::<Vec<_>>()
             .join("; ")
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::gpu_device_files;
+
+    /// The GPU device files are found by name, in /dev and /dev/dri; other
+    /// device files (a terminal, DRM's control directory) are not GPUs.
+    #[test]
+    fn gpu_device_files_are_found_by_name() {
+        let d = tempfile::tempdir().unwrap();
+        let touch = |p: &str| {
+            let p = d.path().join(p);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"").unwrap();
+        };
+        touch("tty0");
+        touch("dri/by-path/pci-0000:00:02.0-render");
+        assert!(gpu_device_files(d.path()).is_empty());
+        touch("dri/renderD128");
+        touch("nvidia0");
+        touch("kgsl-3d0");
+        let found: Vec<String> = gpu_device_files(d.path())
+            .iter()
+            .map(|p| p.strip_prefix(d.path()).unwrap().display().to_string())
+            .collect();
+        assert_eq!(found, ["dri/renderD128", "kgsl-3d0", "nvidia0"]);
+        // No /dev at all: nothing.
+        assert!(gpu_device_files(&d.path().join("absent")).is_empty());
+    }
 }

@@ -77,6 +77,12 @@ pub fn run(a: DevicesArgs, _ui: Ui) -> Result<u8> {
     }
     match auto_pick {
         Some(i) => println!("--backend auto: device {i} ({})", list[i].name),
+        None if crate::run::no_gpu_here() => {
+            println!(
+                "--backend auto: the CPU mirror ({})",
+                crate::run::NO_GPU_FILE
+            )
+        }
         None => println!("--backend auto: the CPU mirror ({})", auto_reason(&list)),
     }
     Ok(0)

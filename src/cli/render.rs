@@ -88,7 +88,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         log::warn!("--gpu-math fast has no effect with --backend cpu");
     }
     // Surveying the Vulkan devices for `auto` overlaps reading and packing.
-    let mut survey = run::DeviceSurvey::start(a.backend, a.precision);
+    let mut survey = run::DeviceSurvey::start(a.backend, a.precision, a.gpu.device);
     let scene = super::load_scene(ui, &a.scene)?;
     let t_load = t_start.elapsed().as_secs_f64();
     log::debug!("loaded {} in {t_load:.3} s", a.scene.display());
