@@ -30,7 +30,7 @@ struct Globals {
 struct Prim {
     uint kind_mat;
     uint data;
-    uint cell_lo;
+    uint cell_lo;  // under the BVH: the rank that settles ties (query.glsl)
     uint cell_hi;
     vec4 a;
     vec4 b;

@@ -55,6 +55,12 @@ struct Query {
     bool found;
     Hit hit;
     uint prim;
+    // Primitives are asked for hits below this: t until a hit is found
+    // (and always for a feeler), then next_up of the best hit's distance,
+    // so that a hit at the same distance (a tie) is seen.
+    float bound;
+    // Closest hit: the best hit's rank (prim_rank); a tie goes to the lower.
+    uint rank;
     // Shadow: the product of the k_t of the blockers found so far.
     vec3 trans;
     // Shadow: an opaque blocker was found (the walk may stop).
@@ -64,20 +70,35 @@ struct Query {
 // The nearest hit below tmax.
 Query query_closest(float tmax) {
     return Query(tmax, false, SHADOW_CACHE_LIGHTS, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu,
-                 vec3(1.0), false);
+                 tmax, 0xFFFFFFFFu, vec3(1.0), false);
 }
 
 // The light left at the end of a feeler of length dist towards light.
 Query query_shadow(float dist, uint light) {
-    return Query(dist, true, light, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu, vec3(1.0), false);
+    return Query(dist, true, light, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu, dist, 0xFFFFFFFFu,
+                 vec3(1.0), false);
+}
+
+// Where primitive i stands when two are hit at the same distance: the
+// order in which the scene lists it (Rust: trace::query::rank). Under the
+// grid that is i; the BVH keeps it in cell_lo.
+uint prim_rank(Prim prim, uint i) {
+    return g.flags.y == ACCEL_BVH ? prim.cell_lo : i;
+}
+
+// The least float above t >= 0 (+INF stays): Rust's f32::next_up there.
+float next_up(float t) {
+    return t < INF ? uintBitsToFloat(floatBitsToUint(t) + 1u) : t;
 }
 
 // Tests prim (primitive i) for query q; true when the query is done (an
 // opaque blocker for a feeler: nothing further can change the answer).
+// Of two primitives hit at the same distance, the closest hit is the one
+// of lower rank, whatever order the structure walks them in.
 bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
     work_tests += 1u;
     Hit h;
-    if (intersect(prim, ray, pre, q.t, h)) {
+    if (intersect(prim, ray, pre, q.bound, h)) {
         if (q.shadow) {
             vec3 kt = materials[prim_material(prim)].kt.xyz;
             PRECISE vec3 trans = q.trans * kt;
@@ -89,10 +110,16 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
                 q.done = true;
             }
         } else {
-            q.t = h.t;
-            q.found = true;
-            q.hit = h;
-            q.prim = i;
+            // h.t <= q.t: nearer, or a tie.
+            uint r = prim_rank(prim, i);
+            if (h.t < q.t || r < q.rank) {
+                q.t = h.t;
+                q.bound = next_up(h.t);
+                q.rank = r;
+                q.found = true;
+                q.hit = h;
+                q.prim = i;
+            }
         }
     }
     return q.done;

@@ -49,7 +49,10 @@ pub struct Globals {
 /// One primitive, 64 bytes. `kind_mat` = kind (low 4 bits) | material << 4.
 /// `cell_lo`/`cell_hi` are the grid cell range of its bounds, 10 bits per
 /// axis (x | y << 10 | z << 20); a ray skips a primitive it already tested
-/// in the previous cell by checking that cell against this range.
+/// in the previous cell by checking that cell against this range. Under
+/// the BVH, which packs primitives in leaf order, `cell_lo` is instead the
+/// primitive's rank, its index under the grid's order, which settles ties
+/// (`trace::query::rank`).
 ///
 /// | kind     | a                  | b                       | c                   | data            |
 /// |----------|--------------------|-------------------------|---------------------|-----------------|

@@ -948,9 +948,13 @@ pub fn pack_with_progress(
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
         let tree = bvh::build(&bounds, progress);
-        // Leaf order: each leaf a contiguous run of primitives.
+        // Leaf order: each leaf a contiguous run of primitives, each
+        // keeping its rank (the scene's order) in `cell_lo` for ties
+        // (`trace::query::rank`).
         for &i in &tree.order {
-            prims.push(b.bounded[i as usize].0);
+            let mut p = b.bounded[i as usize].0;
+            p.cell_lo = i;
+            prims.push(p);
         }
         let empty = grid::Grid {
             dims: [1, 1, 1],
@@ -987,6 +991,11 @@ pub fn pack_with_progress(
     drop(b.bounded);
     let build_seconds = t0.elapsed().as_secs_f64();
     prims.extend(b.unbounded);
+    if need.bvh {
+        for (i, p) in prims.iter_mut().enumerate().skip(n_bounded as usize) {
+            p.cell_lo = i as u32;
+        }
+    }
 
     let forward = (cam.at - cam.from).normalize();
     let right = forward.cross(cam.up).normalize();

@@ -21,6 +21,9 @@ pub trait Real: Float + Debug + Default + Send + Sync + 'static {
     /// self^y for self > 0: in f32 the twin [`pow_f32`], in f64 the
     /// library's.
     fn pow_t(self, y: Self) -> Self;
+    /// The least value above self (self ≥ 0; +∞ stays): the shader's
+    /// `next_up` (math.glsl), one more in the bit pattern.
+    fn next_up_t(self) -> Self;
 }
 
 impl Real for f32 {
@@ -44,6 +47,10 @@ impl Real for f32 {
     fn pow_t(self, y: Self) -> Self {
         pow_f32(self, y)
     }
+    #[inline(always)]
+    fn next_up_t(self) -> Self {
+        self.next_up()
+    }
 }
 
 impl Real for f64 {
@@ -66,6 +73,10 @@ impl Real for f64 {
     #[inline(always)]
     fn pow_t(self, y: Self) -> Self {
         self.powf(y)
+    }
+    #[inline(always)]
+    fn next_up_t(self) -> Self {
+        self.next_up()
     }
 }
 

@@ -12,7 +12,7 @@
 use super::intersect::{intersect, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::SceneView;
-use crate::constants::SHADOW_CACHE_LIGHTS;
+use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LIGHTS};
 use crate::pack::layout::Prim;
 
 /// Per-thread scratch of the tracer: counters of intersection work (for
@@ -55,6 +55,12 @@ pub struct Query<F> {
     pub light: usize,
     /// Closest hit: the best hit and its primitive.
     pub hit: Option<(Hit<F>, u32)>,
+    /// Primitives are asked for hits below this: `t` until a hit is found
+    /// (and always for a feeler), then the least value above the best
+    /// hit's distance, so that a hit at the same distance (a tie) is seen.
+    pub bound: F,
+    /// Closest hit: the best hit's rank (`rank`); a tie goes to the lower.
+    pub rank: u32,
     /// Shadow: the product of the k_t of the blockers found so far.
     pub trans: V3<F>,
     /// Shadow: an opaque blocker was found (the walk may stop).
@@ -69,6 +75,8 @@ impl<F: Real> Query<F> {
             shadow: false,
             light: SHADOW_CACHE_LIGHTS as usize,
             hit: None,
+            bound: tmax,
+            rank: u32::MAX,
             trans: V3::splat(F::one()),
             done: false,
         }
@@ -82,15 +90,35 @@ impl<F: Real> Query<F> {
             shadow: true,
             light,
             hit: None,
+            bound: dist,
+            rank: u32::MAX,
             trans: V3::splat(F::one()),
             done: false,
         }
     }
 }
 
+/// Where primitive `i` stands when two are hit at the same distance: the
+/// order in which the scene lists it (its bounded primitives in order,
+/// then its unbounded ones), whatever order the structure packs them in.
+/// Under the grid that is `i` itself; the BVH packs primitives in leaf
+/// order and keeps the rank in `cell_lo`, which only the grid uses
+/// otherwise (`pack::layout::Prim`).
+#[inline(always)]
+pub fn rank(s: &SceneView, prim: &Prim, i: u32) -> u32 {
+    if s.globals.flags[1] == ACCEL_BVH {
+        prim.cell_lo
+    } else {
+        i
+    }
+}
+
 /// Tests `prim` (primitive `i`) for query `q`; true when the query is
 /// done (an opaque blocker for a feeler: nothing further can change the
-/// answer).
+/// answer). Of two primitives hit at the same distance, the closest hit
+/// is the one of lower `rank`, so that every structure, walked in any
+/// order, and brute force find the same primitive (two surfaces meeting
+/// where a ray crosses them: SPD rings' spheres and cylinders).
 #[inline(always)]
 pub fn query_prim<F: Real>(
     s: &SceneView,
@@ -102,7 +130,7 @@ pub fn query_prim<F: Real>(
     work: &mut Work,
 ) -> bool {
     work.tests += 1;
-    if let Some(h) = intersect(prim, s.extra, ray, pre, q.t) {
+    if let Some(h) = intersect(prim, s.extra, ray, pre, q.bound) {
         if q.shadow {
             let kt = V3::of(&s.materials[prim.material() as usize].kt);
             q.trans = q.trans.mul_elem(kt);
@@ -113,8 +141,14 @@ pub fn query_prim<F: Real>(
                 q.done = true;
             }
         } else {
-            q.t = h.t;
-            q.hit = Some((h, i));
+            // h.t ≤ q.t: nearer, or a tie.
+            let r = rank(s, prim, i);
+            if h.t < q.t || r < q.rank {
+                q.t = h.t;
+                q.bound = h.t.next_up_t();
+                q.rank = r;
+                q.hit = Some((h, i));
+            }
         }
     }
     q.done
