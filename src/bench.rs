@@ -135,6 +135,21 @@ pub struct Row {
     pub flip_vs_povray: Option<f64>,
 }
 
+/// A case an engine could not run: its first failure, after which its
+/// other runs of that case are skipped (the other engines and cases go
+/// on).
+#[derive(Clone, Debug)]
+pub struct Failure {
+    pub case: String,
+    pub family: String,
+    pub primitives: u64,
+    pub width: u32,
+    pub height: u32,
+    pub engine: String,
+    /// What went wrong: the child's exit status and message.
+    pub message: String,
+}
+
 /// How to run a suite.
 #[derive(Clone, Debug)]
 pub struct Plan {
@@ -457,10 +472,11 @@ pub fn image_difference(reference: &Path, test: &Path) -> Result<(f64, f64)> {
 }
 
 /// Runs the plan; `progress(done, total)` after each run.
-pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<Vec<Row>> {
+pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<(Vec<Row>, Vec<Failure>)> {
     let total = (plan.cases.len() * plan.engines.len() * (plan.runs + plan.warmup)) as u64;
     let mut done = 0u64;
     let mut rows = Vec::new();
+    let mut failures = Vec::new();
     let has_povray = plan.engines.contains(&Engine::PovRay);
     for case in &plan.cases {
         if has_povray {
@@ -477,22 +493,49 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<Vec<Row>> {
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
         let mut samples: Vec<Vec<Sample>> = vec![Vec::new(); plan.engines.len()];
+        // An engine's first failure on this case (it is not run again on
+        // it: a scene refused once is refused every time).
+        let mut failed: Vec<Option<String>> = vec![None; plan.engines.len()];
         for k in 0..plan.warmup + plan.runs {
             for (e, engine) in plan.engines.iter().enumerate() {
-                let s = run_once(plan, case, engine, &image_path(plan, case, engine))?;
-                if k >= plan.warmup {
-                    samples[e].push(s);
+                if failed[e].is_none() {
+                    match run_once(plan, case, engine, &image_path(plan, case, engine)) {
+                        Ok(s) if k >= plan.warmup => samples[e].push(s),
+                        Ok(_) => {}
+                        Err(err) => failed[e] = Some(format!("{err:#}")),
+                    }
                 }
                 done += 1;
                 progress(done, total);
             }
         }
+        for (e, engine) in plan.engines.iter().enumerate() {
+            if let Some(message) = failed[e].take() {
+                samples[e].clear();
+                failures.push(Failure {
+                    case: case.name.clone(),
+                    family: case.family.clone(),
+                    primitives: case.primitives,
+                    width: case.width,
+                    height: case.height,
+                    engine: engine.label(),
+                    message,
+                });
+            }
+        }
         let wall_of =
             |e: usize| Summary::of(&samples[e].iter().map(|s| s.wall).collect::<Vec<_>>());
-        let pov_index = plan.engines.iter().position(|e| *e == Engine::PovRay);
+        let pov_index = plan
+            .engines
+            .iter()
+            .position(|e| *e == Engine::PovRay)
+            .filter(|&p| !samples[p].is_empty());
         let pov_wall = pov_index.and_then(wall_of);
         for (e, engine) in plan.engines.iter().enumerate() {
             let s = &samples[e];
+            if s.is_empty() {
+                continue;
+            }
             let wall = wall_of(e).ok_or_else(|| anyhow!("no runs"))?;
             let renders: Vec<f64> = s.iter().filter_map(|x| x.render).collect();
             let render = Summary::of(&renders);
@@ -540,7 +583,15 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<Vec<Row>> {
             });
         }
     }
-    Ok(rows)
+    Ok((rows, failures))
+}
+
+/// The failures, a line each, for beneath the table.
+pub fn failure_lines(failures: &[Failure]) -> String {
+    failures
+        .iter()
+        .map(|f| format!("FAILED {} on {}: {}\n", f.engine, f.case, f.message))
+        .collect()
 }
 
 fn opt<T>(v: Option<T>, f: impl Fn(T) -> String) -> String {
@@ -613,7 +664,7 @@ pub fn table(rows: &[Row]) -> String {
 }
 
 /// The results as CSV (one row per case and engine).
-pub fn csv(rows: &[Row]) -> Result<String> {
+pub fn csv(rows: &[Row], failures: &[Failure]) -> Result<String> {
     let mut w = csv::Writer::from_writer(Vec::new());
     w.write_record([
         "scene",
@@ -639,6 +690,7 @@ pub fn csv(rows: &[Row]) -> Result<String> {
         "tests_per_ray",
         "cells_per_ray",
         "nodes_per_ray",
+        "failed",
     ])?;
     let o = |v: Option<f64>| v.map(|x| format!("{x}")).unwrap_or_default();
     for r in rows {
@@ -666,7 +718,22 @@ pub fn csv(rows: &[Row]) -> Result<String> {
             o(r.tests_per_ray),
             o(r.cells_per_ray),
             o(r.nodes_per_ray),
+            String::new(),
         ])?;
+    }
+    for f in failures {
+        let mut rec = vec![
+            f.case.clone(),
+            f.family.clone(),
+            f.primitives.to_string(),
+            f.width.to_string(),
+            f.height.to_string(),
+            f.engine.clone(),
+            "0".into(),
+        ];
+        rec.resize(23, String::new());
+        rec.push(f.message.clone());
+        w.write_record(&rec)?;
     }
     Ok(String::from_utf8(
         w.into_inner().map_err(|e| anyhow!("{e}"))?,
@@ -882,12 +949,36 @@ mod tests {
         };
         let t = table(std::slice::from_ref(&row));
         assert!(t.contains("balls") && t.contains("6.0x") && t.contains("0.300 (0.290-0.310)"));
-        let c = csv(&[row]).unwrap();
-        assert_eq!(c.lines().count(), 2);
+        let failure = Failure {
+            case: "gears".into(),
+            family: "spd".into(),
+            primitives: 9345,
+            width: 512,
+            height: 512,
+            engine: "gpu:llvmpipe".into(),
+            message: "refused, say".into(),
+        };
+        let c = csv(&[row], std::slice::from_ref(&failure)).unwrap();
+        assert_eq!(c.lines().count(), 3);
+        let header_len = c.lines().next().unwrap().split(',').count();
         assert!(c
             .lines()
             .nth(1)
             .unwrap()
             .starts_with("balls,spd,7382,512,512,cpu,3,0.3,"));
+        let last = c.lines().nth(2).unwrap();
+        assert!(last.starts_with("gears,spd,9345,512,512,gpu:llvmpipe,0,"));
+        assert!(last.ends_with(",refused, say") || last.ends_with(",\"refused, say\""));
+        assert_eq!(
+            csv::Reader::from_reader(c.as_bytes())
+                .records()
+                .map(|r| r.unwrap().len())
+                .collect::<Vec<_>>(),
+            [header_len, header_len]
+        );
+        assert_eq!(
+            failure_lines(&[failure]),
+            "FAILED gpu:llvmpipe on gears: refused, say\n"
+        );
     }
 }

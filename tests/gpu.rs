@@ -1678,3 +1678,64 @@ fn ties_render_alike_on_both_twins_and_structures() {
         .count();
     assert_eq!(differ, 0, "grid and BVH: {differ} pixels differ");
 }
+
+/// `whitted bench` records a case an engine cannot run and goes on: with
+/// a device fault injected into every GPU render, the CPU mirror's rows
+/// are there, the GPU's failure is a FAILED line and a CSV row with its
+/// message, and the exit code is 1.
+#[test]
+fn bench_goes_on_past_a_failing_engine() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("f.csv");
+    let o = whitted()
+        .env("WHITTED_GPU_FAULT", "out-of-device-memory")
+        .args([
+            "-q",
+            "bench",
+            "--suite",
+            "spd",
+            "--only",
+            "tetra,teapot",
+            "--size",
+            "1",
+            "--runs",
+            "2",
+            "--warmup",
+            "0",
+            "--resolution",
+            "24x24",
+            "--backends",
+            "cpu,gpu",
+            "--csv",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{out}{}", stderr_of(&o));
+    let failed: Vec<&str> = out.lines().filter(|l| l.starts_with("FAILED")).collect();
+    assert_eq!(failed.len(), 2, "{out}");
+    assert!(
+        failed
+            .iter()
+            .all(|l| l.contains("gpu:") && l.contains("out of device memory")),
+        "{out}"
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut r = csv::Reader::from_reader(text.as_bytes());
+    let header = r.headers().unwrap().clone();
+    let col = |n: &str| header.iter().position(|h| h == n).unwrap();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    assert_eq!(rows.len(), 4, "{text}");
+    for row in &rows {
+        let gpu = row[col("engine")].starts_with("gpu");
+        assert_eq!(row[col("failed")].is_empty(), !gpu, "{text}");
+        assert_eq!(&row[col("runs")], if gpu { "0" } else { "2" }, "{text}");
+        if !gpu {
+            assert!(row[col("wall_median_s")].parse::<f64>().unwrap() > 0.0);
+        }
+    }
+}

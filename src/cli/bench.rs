@@ -365,13 +365,15 @@ pub fn run(a: BenchArgs, ui: Ui) -> Result<u8> {
     let bar = Bar::new(ui, "benchmarking");
     let rows = bench::run(&plan, &|d, t| bar.set(d, t));
     bar.finish();
-    let rows = rows?;
+    let (rows, failures) = rows?;
     print!("{}", bench::table(&rows));
+    print!("{}", bench::failure_lines(&failures));
     if a.scaling {
         print!("{}", bench::scaling_summary(&rows));
     }
     if let Some(p) = &a.csv {
-        files::write_bytes(&Dest::new(p), bench::csv(&rows)?.as_bytes()).map_err(user)?;
+        files::write_bytes(&Dest::new(p), bench::csv(&rows, &failures)?.as_bytes())
+            .map_err(user)?;
     }
     if let Some(p) = &a.plot {
         if a.scaling {
@@ -393,5 +395,5 @@ pub fn run(a: BenchArgs, ui: Ui) -> Result<u8> {
             crate::plot::draw(&bench::suite_chart(&rows, &title), p)?;
         }
     }
-    Ok(0)
+    Ok(if failures.is_empty() { 0 } else { 1 })
 }

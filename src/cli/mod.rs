@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 /// A recursive (Whitted-style) ray tracer: a Vulkan compute shader with a
 /// CPU mirror of the same algorithm on the same data.
 ///
-/// Exit codes: 0 success, 1 validation over tolerance, 2 bad input or
+/// Exit codes: 0 success, 1 validation over tolerance (or a bench case failed), 2 bad input or
 /// usage (the message names the file, line and column), 3 internal error,
 /// 4 the GPU failed (lost, out of memory, timed out, or its driver refused
 /// the kernel),
@@ -81,7 +81,10 @@ pub enum Command {
     /// Time a suite of scenes on every backend (and POV-Ray 3.7 with --vs
     /// povray): a warm-up, then N interleaved runs; median, min and max
     /// wall and render time, Mrays/s over every ray, peak memory; a table,
-    /// CSV and plots (BENCHMARKS.md).
+    /// CSV and plots (BENCHMARKS.md). A case that an engine cannot run
+    /// (its render fails) is reported beneath the table (FAILED) and in the
+    /// CSV's `failed` column, the other engines and cases go on, and the
+    /// exit code is 1.
     ///
     /// Example: whitted bench --vs povray --runs 7 --csv bench.csv --plot bench.svg
     Bench(bench::BenchArgs),
