@@ -111,20 +111,36 @@ fn rects(l: [f64; 3], b: &Bounds, rho: f64, res: u32) -> Option<Vec<(usize, [u32
     Some(out)
 }
 
+/// Bytes the build holds per light and primitive while it counts: the
+/// primitive's entry (`Filed`, 32 B) and its cell rectangles on the heap
+/// (a box seen from a point spans at most three cube faces, 24 B each,
+/// with the allocation's own overhead).
+pub const FILED_BYTES: u64 = 32 + 3 * 24 + 16;
+
 /// Builds the light buffers of `lights` (camera-relative positions) over
 /// `bounds` (the finite primitives' bounds, in `prims` order), or `None`
-/// when the references would pass `max_refs`.
+/// when the references would pass `max_refs` or what the build holds
+/// while counting them (`FILED_BYTES` per light and primitive, 8 B per
+/// cell) would pass `max_bytes`; both are checked before the allocation.
 pub fn build(
     lights: &[[f64; 3]],
     bounds: &[Bounds],
     eps: f64,
     scale: f64,
     max_refs: u64,
+    max_bytes: u64,
 ) -> Option<LightBuf> {
     use rayon::prelude::*;
     let res = resolution(bounds.len());
     let per_light = 6 * (res as usize) * (res as usize);
     let ncells = lights.len() * per_light;
+    let transient = (lights.len() as u64)
+        .saturating_mul(bounds.len() as u64)
+        .saturating_mul(FILED_BYTES)
+        .saturating_add((ncells as u64 + 1) * 8);
+    if transient > max_bytes {
+        return None;
+    }
     // Per light, in parallel: the cell rectangles of every primitive.
     let filed: Vec<Vec<Filed>> = lights
         .par_iter()
@@ -234,8 +250,25 @@ mod tests {
         let r = rects([0.0; 3], &b, 1e-6, 8).unwrap();
         // face +x only, the four centre cells padded by one: 2..=5
         assert_eq!(r, vec![(0, [2, 5, 2, 5])]);
-        let lb = build(&[[0.0; 3]], &[b], 1e-7, 10.0, u64::MAX).unwrap();
+        let lb = build(&[[0.0; 3]], &[b], 1e-7, 10.0, u64::MAX, u64::MAX).unwrap();
         assert_eq!(lb.res, RES_MIN);
         assert_eq!(lb.start.len(), 6 * 16 + 1);
+    }
+
+    /// What the build holds while counting is checked against its
+    /// allowance before it allocates: a million primitives and eight
+    /// lights (some 1 GB of rectangles) are turned down with 100 MB.
+    #[test]
+    fn the_build_refuses_what_it_would_hold_beyond_its_allowance() {
+        let b = Bounds {
+            lo: [9.9, -0.01, -0.01],
+            hi: [10.1, 0.01, 0.01],
+        };
+        let many = vec![b; 1_000_000];
+        let lights = [[0.0; 3]; 8];
+        // Unbounded references: only the allowance can turn it down.
+        assert!(build(&lights, &many, 1e-7, 10.0, u64::MAX, 100 << 20).is_none());
+        // One light and ten primitives fit in that allowance.
+        assert!(build(&lights[..1], &many[..10], 1e-7, 10.0, u64::MAX, 100 << 20).is_some());
     }
 }

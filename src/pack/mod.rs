@@ -1041,7 +1041,8 @@ pub fn pack_with_progress(
             refs: g.refs.len() as u64,
             ..need
         };
-        let room = budget.limit().saturating_sub(now.peak()) / 4;
+        let free = budget.limit().saturating_sub(now.peak());
+        let room = free / 4;
         let res = lightbuf::resolution(ordered.len());
         let cells = lightbuf::cells(lights.len(), res);
         let max_refs = room.saturating_sub(cells + 1);
@@ -1050,7 +1051,7 @@ pub fn pack_with_progress(
             .iter()
             .map(|l| (l.position - origin).to_array())
             .collect();
-        match lightbuf::build(&at, &ordered, eps as f64, scale, max_refs) {
+        match lightbuf::build(&at, &ordered, eps as f64, scale, max_refs, free) {
             Some(built) => lb = built,
             None => log::info!(
                 "the light buffers do not fit the memory budget (or 32-bit offsets); \
