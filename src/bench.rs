@@ -140,11 +140,8 @@ pub struct Row {
 /// on).
 #[derive(Clone, Debug)]
 pub struct Failure {
-    pub case: String,
-    pub family: String,
-    pub primitives: u64,
-    pub width: u32,
-    pub height: u32,
+    pub case: Case,
+    /// The engine's label.
     pub engine: String,
     /// What went wrong: the child's exit status and message.
     pub message: String,
@@ -513,11 +510,7 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<(Vec<Row>, Vec<Fa
             if let Some(message) = failed[e].take() {
                 samples[e].clear();
                 failures.push(Failure {
-                    case: case.name.clone(),
-                    family: case.family.clone(),
-                    primitives: case.primitives,
-                    width: case.width,
-                    height: case.height,
+                    case: case.clone(),
                     engine: engine.label(),
                     message,
                 });
@@ -590,7 +583,7 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<(Vec<Row>, Vec<Fa
 pub fn failure_lines(failures: &[Failure]) -> String {
     failures
         .iter()
-        .map(|f| format!("FAILED {} on {}: {}\n", f.engine, f.case, f.message))
+        .map(|f| format!("FAILED {} on {}: {}\n", f.engine, f.case.name, f.message))
         .collect()
 }
 
@@ -722,12 +715,13 @@ pub fn csv(rows: &[Row], failures: &[Failure]) -> Result<String> {
         ])?;
     }
     for f in failures {
+        let c = &f.case;
         let mut rec = vec![
-            f.case.clone(),
-            f.family.clone(),
-            f.primitives.to_string(),
-            f.width.to_string(),
-            f.height.to_string(),
+            c.name.clone(),
+            c.family.clone(),
+            c.primitives.to_string(),
+            c.width.to_string(),
+            c.height.to_string(),
             f.engine.clone(),
             "0".into(),
         ];
@@ -950,11 +944,18 @@ mod tests {
         let t = table(std::slice::from_ref(&row));
         assert!(t.contains("balls") && t.contains("6.0x") && t.contains("0.300 (0.290-0.310)"));
         let failure = Failure {
-            case: "gears".into(),
-            family: "spd".into(),
-            primitives: 9345,
-            width: 512,
-            height: 512,
+            case: Case {
+                name: "gears".into(),
+                family: "spd".into(),
+                scene: "gears.nff".into(),
+                args: Vec::new(),
+                width: 512,
+                height: 512,
+                max_depth: 4,
+                min_weight: 0.0,
+                sampling: crate::pack::Sampling::Corners,
+                primitives: 9345,
+            },
             engine: "gpu:llvmpipe".into(),
             message: "refused, say".into(),
         };

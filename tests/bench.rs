@@ -208,9 +208,7 @@ fn bench_times_each_structure() {
 /// to the last one.
 #[test]
 fn bench_times_each_shadow_method() {
-    let d = tempfile::tempdir().unwrap();
-    let csv = d.path().join("s.csv");
-    let (text, header, rows) = small_spd_bench(
+    two_engines_same_rays(
         &[
             "--only",
             "balls",
@@ -219,27 +217,24 @@ fn bench_times_each_shadow_method() {
             "--shadows",
             "plain,lightbuffer",
         ],
-        &csv,
+        "cpu/bvh/plain",
+        "cpu/bvh/lightbuffer",
     );
-    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    assert_eq!(rows.len(), 2, "{text}");
-    let of = |engine: &str| {
-        rows.iter()
-            .find(|x| &x[col("engine")] == engine)
-            .unwrap_or_else(|| panic!("{engine}: {text}"))
-    };
-    let (p, l) = (of("cpu/bvh/plain"), of("cpu/bvh/lightbuffer"));
-    assert_eq!(&p[col("rays")], &l[col("rays")], "{text}");
-    assert!(p[col("rays")].parse::<u64>().unwrap() > 0);
 }
 
 /// `--backends auto` times `render`'s default backend beside the CPU
 /// mirror: a row of its own, tracing the same rays.
 #[test]
 fn bench_times_the_default_backend() {
+    two_engines_same_rays(&["--only", "tetra", "--backends", "auto"], "cpu", "auto");
+}
+
+/// `small_spd_bench` with `extra` on one scene: two rows, engines `a` and
+/// `b`, which traced the same rays (more than none).
+fn two_engines_same_rays(extra: &[&str], a: &str, b: &str) {
     let d = tempfile::tempdir().unwrap();
-    let csv = d.path().join("a.csv");
-    let (text, header, rows) = small_spd_bench(&["--only", "tetra", "--backends", "auto"], &csv);
+    let csv = d.path().join("two.csv");
+    let (text, header, rows) = small_spd_bench(extra, &csv);
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
     assert_eq!(rows.len(), 2, "{text}");
     let of = |engine: &str| {
@@ -247,7 +242,7 @@ fn bench_times_the_default_backend() {
             .find(|x| &x[col("engine")] == engine)
             .unwrap_or_else(|| panic!("{engine}: {text}"))
     };
-    let (c, a) = (of("cpu"), of("auto"));
-    assert_eq!(&c[col("rays")], &a[col("rays")], "{text}");
-    assert!(a[col("rays")].parse::<u64>().unwrap() > 0, "{text}");
+    let (x, y) = (of(a), of(b));
+    assert_eq!(&x[col("rays")], &y[col("rays")], "{text}");
+    assert!(x[col("rays")].parse::<u64>().unwrap() > 0, "{text}");
 }
