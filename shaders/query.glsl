@@ -79,8 +79,8 @@ Query query_shadow(float dist, uint light) {
                  vec3(1.0), false);
 }
 
-// Where primitive i stands when two are hit at the same distance: the
-// order in which the scene lists it (Rust: trace::query::rank). Under the
+// Where primitive i stands when two are hit at the same distance: its
+// index in the grid's packing order (Rust: trace::query::rank). Under the
 // grid that is i; the BVH keeps it in cell_lo.
 uint prim_rank(Prim prim, uint i) {
     return g.flags.y == ACCEL_BVH ? prim.cell_lo : i;

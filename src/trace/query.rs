@@ -98,12 +98,13 @@ impl<F: Real> Query<F> {
     }
 }
 
-/// Where primitive `i` stands when two are hit at the same distance: the
-/// order in which the scene lists it (its bounded primitives in order,
-/// then its unbounded ones), whatever order the structure packs them in.
-/// Under the grid that is `i` itself; the BVH packs primitives in leaf
-/// order and keeps the rank in `cell_lo`, which only the grid uses
-/// otherwise (`pack::layout::Prim`).
+/// Where primitive `i` stands when two are hit at the same distance, the
+/// same whatever order the structure packs them in: its index in the
+/// grid's packing order (bounded primitives in the Morton order of their
+/// boxes' centres, scene order among equal codes, then the unbounded
+/// ones). Under the grid that is `i` itself; the BVH packs primitives in
+/// leaf order and keeps the rank in `cell_lo`, which only the grid uses
+/// otherwise (`pack::layout::Prim`; docs/method.md, "Ties").
 #[inline(always)]
 pub fn rank(s: &SceneView, prim: &Prim, i: u32) -> u32 {
     if s.globals.flags[1] == ACCEL_BVH {
