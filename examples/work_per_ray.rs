@@ -4,7 +4,7 @@
 //! into blocked feelers (and those the last-blocker cache answers alone)
 //! and unblocked ones. A diagnostic for docs/spd.md's causes.
 //!
-//! Run: `cargo run --release --example scratch_work -- SCENE.nff`
+//! Run: `cargo run --release --example work_per_ray -- SCENE.nff`
 use whitted::pack::{self, Accel, Preset, Settings};
 use whitted::trace::accel::{closest_hit, transmittance};
 use whitted::trace::intersect::RayPre;
