@@ -208,7 +208,7 @@ fn bench_times_each_structure() {
 /// to the last one.
 #[test]
 fn bench_times_each_shadow_method() {
-    two_engines_same_rays(
+    let (p, l, text) = two_engines_rays(
         &[
             "--only",
             "balls",
@@ -220,18 +220,21 @@ fn bench_times_each_shadow_method() {
         "cpu/bvh/plain",
         "cpu/bvh/lightbuffer",
     );
+    assert_eq!(p, l, "{text}");
 }
 
 /// `--backends auto` times `render`'s default backend beside the CPU
-/// mirror: a row of its own, tracing the same rays.
+/// mirror: a row of its own, tracing the same rays (the CPU mirror's
+/// where there is no GPU; a real GPU's may count a few differently).
 #[test]
 fn bench_times_the_default_backend() {
-    two_engines_same_rays(&["--only", "tetra", "--backends", "auto"], "cpu", "auto");
+    let (c, a, text) = two_engines_rays(&["--only", "tetra", "--backends", "auto"], "cpu", "auto");
+    assert!(c.abs_diff(a) * 100 <= c, "{text}");
 }
 
 /// `small_spd_bench` with `extra` on one scene: two rows, engines `a` and
-/// `b`, which traced the same rays (more than none).
-fn two_engines_same_rays(extra: &[&str], a: &str, b: &str) {
+/// `b`, and the rays each traced (more than none); and the CSV.
+fn two_engines_rays(extra: &[&str], a: &str, b: &str) -> (u64, u64, String) {
     let d = tempfile::tempdir().unwrap();
     let csv = d.path().join("two.csv");
     let (text, header, rows) = small_spd_bench(extra, &csv);
@@ -242,7 +245,8 @@ fn two_engines_same_rays(extra: &[&str], a: &str, b: &str) {
             .find(|x| &x[col("engine")] == engine)
             .unwrap_or_else(|| panic!("{engine}: {text}"))
     };
-    let (x, y) = (of(a), of(b));
-    assert_eq!(&x[col("rays")], &y[col("rays")], "{text}");
-    assert!(x[col("rays")].parse::<u64>().unwrap() > 0, "{text}");
+    let rays = |engine: &str| of(engine)[col("rays")].parse::<u64>().unwrap();
+    let (x, y) = (rays(a), rays(b));
+    assert!(x > 0 && y > 0, "{text}");
+    (x, y, text)
 }
