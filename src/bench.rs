@@ -656,35 +656,38 @@ pub fn table(rows: &[Row]) -> String {
     out
 }
 
+/// The CSV's columns (`csv`): one per `Row` field, then the failure.
+const CSV_HEADER: [&str; 24] = [
+    "scene",
+    "family",
+    "primitives",
+    "width",
+    "height",
+    "engine",
+    "runs",
+    "wall_median_s",
+    "wall_min_s",
+    "wall_max_s",
+    "prep_median_s",
+    "render_median_s",
+    "render_min_s",
+    "render_max_s",
+    "rays",
+    "mrays_per_s",
+    "peak_bytes",
+    "povray_over_this",
+    "psnr_vs_povray_db",
+    "flip_vs_povray",
+    "tests_per_ray",
+    "cells_per_ray",
+    "nodes_per_ray",
+    "failed",
+];
+
 /// The results as CSV (one row per case and engine).
 pub fn csv(rows: &[Row], failures: &[Failure]) -> Result<String> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record([
-        "scene",
-        "family",
-        "primitives",
-        "width",
-        "height",
-        "engine",
-        "runs",
-        "wall_median_s",
-        "wall_min_s",
-        "wall_max_s",
-        "prep_median_s",
-        "render_median_s",
-        "render_min_s",
-        "render_max_s",
-        "rays",
-        "mrays_per_s",
-        "peak_bytes",
-        "povray_over_this",
-        "psnr_vs_povray_db",
-        "flip_vs_povray",
-        "tests_per_ray",
-        "cells_per_ray",
-        "nodes_per_ray",
-        "failed",
-    ])?;
+    w.write_record(CSV_HEADER)?;
     let o = |v: Option<f64>| v.map(|x| format!("{x}")).unwrap_or_default();
     for r in rows {
         w.write_record([
@@ -725,7 +728,7 @@ pub fn csv(rows: &[Row], failures: &[Failure]) -> Result<String> {
             f.engine.clone(),
             "0".into(),
         ];
-        rec.resize(23, String::new());
+        rec.resize(CSV_HEADER.len() - 1, String::new());
         rec.push(f.message.clone());
         w.write_record(&rec)?;
     }

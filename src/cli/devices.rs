@@ -77,13 +77,14 @@ pub fn run(a: DevicesArgs, _ui: Ui) -> Result<u8> {
     }
     match auto_pick {
         Some(i) => println!("--backend auto: device {i} ({})", list[i].name),
-        None if crate::run::no_gpu_here() => {
-            println!(
-                "--backend auto: the CPU mirror ({})",
-                crate::run::NO_GPU_FILE
-            )
+        None => {
+            let why = if crate::run::no_gpu_here() {
+                crate::run::NO_GPU_FILE.to_string()
+            } else {
+                auto_reason(&list)
+            };
+            println!("--backend auto: the CPU mirror ({why})")
         }
-        None => println!("--backend auto: the CPU mirror ({})", auto_reason(&list)),
     }
     Ok(0)
 }

@@ -189,18 +189,18 @@ impl LoopLoad {
                 polygon = Some((i as u32, n, polygon_centre(p, prim)));
             }
         }
-        let cell_refs = p
-            .cell_start
-            .windows(2)
-            .map(|w| w[1].saturating_sub(w[0]))
-            .max()
-            .unwrap_or(0);
-        let lb_refs = if g.flags[3] > 0 {
-            p.lb_start
+        // The longest list of an offsets array (a cell's first entry,
+        // then the next cell's).
+        let longest = |start: &[u32]| {
+            start
                 .windows(2)
                 .map(|w| w[1].saturating_sub(w[0]))
                 .max()
                 .unwrap_or(0)
+        };
+        let cell_refs = longest(&p.cell_start);
+        let lb_refs = if g.flags[3] > 0 {
+            longest(&p.lb_start)
         } else {
             0
         };

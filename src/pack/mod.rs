@@ -949,8 +949,8 @@ pub fn pack_with_progress(
         budget.check(&need)?;
         let tree = bvh::build(&bounds, progress);
         // Leaf order: each leaf a contiguous run of primitives, each
-        // keeping its rank (the scene's order) in `cell_lo` for ties
-        // (`trace::query::rank`).
+        // keeping its rank (its index in the grid's order) in `cell_lo`
+        // for ties (`trace::query::rank`).
         for &i in &tree.order {
             let mut p = b.bounded[i as usize].0;
             p.cell_lo = i;

@@ -32,9 +32,9 @@ pub fn reflect_dir<F: Real>(i: V3<F>, n: V3<F>) -> V3<F> {
 /// Local intensity at `p` seen along `d`. `n`: shading normal facing the
 /// viewer; `ngf`: geometric normal facing the viewer; `front`: the viewer is
 /// on the outside of the surface. `weighted`: the ray carries weight, so
-/// its local intensity is wanted; a ray of weight 0 (SPD counting) only
-/// counts the feelers it would cast, which a count does not need traced
-/// (it depends on the light's side alone), and returns 0.
+/// its local intensity is wanted; for a ray of weight 0 (SPD counting)
+/// the feelers it would cast are counted, not traced (the count depends
+/// on the light's side alone), and what is returned is not to be used.
 #[allow(clippy::too_many_arguments)]
 pub fn shade<F: Real>(
     s: &SceneView,
