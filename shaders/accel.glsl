@@ -1,13 +1,15 @@
 // The tracer's two queries over the whole scene: twin of
 // src/trace/accel.rs. Each tests the unbounded primitives (planes,
 // unclipped quadrics, giants) and then walks the structure the packed
-// scene carries (g.flags.y): the grid (grid.glsl) or the BVH (bvh.glsl),
-// one traversal each serving both queries (query.glsl).
+// scene carries (g.flags.y): the grid (grid.glsl), the BVH (bvh.glsl) or
+// the octree (octree.glsl), one traversal each serving both queries
+// (query.glsl).
 #ifndef WHITTED_ACCEL_GLSL
 #define WHITTED_ACCEL_GLSL
 
 #include "grid.glsl"
 #include "bvh.glsl"
+#include "octree.glsl"
 #include "lightbuf.glsl"
 
 // Runs query q: the unbounded primitives, then the structure in use.
@@ -18,6 +20,8 @@ void accel_traverse(Ray ray, RayPre pre, inout Query q) {
     }
     if (g.flags.y == ACCEL_BVH) {
         bvh_traverse(ray, pre, q);
+    } else if (g.flags.y == ACCEL_OCTREE) {
+        octree_traverse(ray, pre, q);
     } else {
         grid_traverse(ray, pre, q);
     }

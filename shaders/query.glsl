@@ -2,7 +2,7 @@
 // primitive it reaches: twin of src/trace/query.rs.
 //
 // Every acceleration structure has one traversal (grid_traverse,
-// bvh_traverse) that serves both queries: it hands each primitive to
+// bvh_traverse, octree_traverse) that serves both queries: it hands each primitive to
 // query_prim and bounds its walk by Query.t. For the closest hit t is the
 // best hit so far and shrinks with every hit; for a shadow feeler (any
 // hit, with the transmittance of every transparent blocker) it is the
@@ -29,7 +29,7 @@ uint shadow_cache[SHADOW_CACHE_LIGHTS];
 uint loops_cut = 0u;
 
 // Work counters, twins of trace::query::Work's (primitive tests, grid
-// cells, BVH interior nodes), counted at the same places; render.comp adds
+// cells or octree leaves, BVH or octree interior nodes), counted at the same places; render.comp adds
 // them up per subgroup and the host reads them into Frame::work.
 uint work_tests = 0u;
 uint work_cells = 0u;
@@ -65,18 +65,23 @@ struct Query {
     vec3 trans;
     // Shadow: an opaque blocker was found (the walk may stop).
     bool done;
+    // Shadow: a blocker that lets light through counts only where its hit
+    // lies in lo..hi (everywhere but under the octree, whose walk sets its
+    // current leaf's stretch of the feeler: octree.glsl).
+    float lo;
+    float hi;
 };
 
 // The nearest hit below tmax.
 Query query_closest(float tmax) {
     return Query(tmax, false, SHADOW_CACHE_LIGHTS, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu,
-                 tmax, 0xFFFFFFFFu, vec3(1.0), false);
+                 tmax, 0xFFFFFFFFu, vec3(1.0), false, -INF, INF);
 }
 
 // The light left at the end of a feeler of length dist towards light.
 Query query_shadow(float dist, uint light) {
     return Query(dist, true, light, false, Hit(0.0, 0.0, 0.0), 0xFFFFFFFFu, dist, 0xFFFFFFFFu,
-                 vec3(1.0), false);
+                 vec3(1.0), false, -INF, INF);
 }
 
 // Where primitive i stands when two are hit at the same distance: its
@@ -101,6 +106,9 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
     if (intersect(prim, ray, pre, q.bound, h)) {
         if (q.shadow) {
             vec3 kt = materials[prim_material(prim)].kt.xyz;
+            if (max_elem(kt) > 0.0 && !(h.t >= q.lo && h.t < q.hi)) {
+                return false;
+            }
             PRECISE vec3 trans = q.trans * kt;
             q.trans = trans;
             if (max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {

@@ -236,6 +236,7 @@ impl Plan {
             budget: self.budget,
             offset: None,
             shadows: c.shadows,
+            octree: Default::default(),
         }
     }
 }

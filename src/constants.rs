@@ -32,6 +32,13 @@ pub const BVH_WIDTH: u32 = 4;
 /// Acceleration structures (`Globals::flags.y`): which one the tracers walk.
 pub const ACCEL_GRID: u32 = 0;
 pub const ACCEL_BVH: u32 = 1;
+pub const ACCEL_OCTREE: u32 = 2;
+/// Second word of an interior octree node (`pack::octree`); a leaf's
+/// second word is its primitive count, always less.
+pub const OCTREE_INTERIOR: u32 = 0xFFFF_FFFF;
+/// Deepest level an octree may reach (the root at 0): its lattice has
+/// 2^OCTREE_MAX_LEVELS cells on each axis.
+pub const OCTREE_MAX_LEVELS: u32 = 16;
 /// Codes of a banded polygon's cells (`pack::polygon::cells`): every
 /// point outside, every point inside, or near an edge (test the edges).
 pub const CELL_OUT: u32 = 0;

@@ -372,6 +372,7 @@ fn small_settings() -> Settings {
         budget: Budget::bytes(MEMORY_LIMIT),
         offset: None,
         shadows: crate::pack::Shadows::Plain,
+        octree: Default::default(),
     }
 }
 
@@ -625,6 +626,7 @@ impl RenderSpec {
             budget: Budget::bytes(MEMORY_LIMIT),
             offset: None,
             shadows: crate::pack::Shadows::Plain,
+            octree: Default::default(),
         }
     }
 }

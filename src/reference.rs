@@ -67,6 +67,7 @@ impl RefSettings {
             budget,
             offset: None,
             shadows: crate::pack::Shadows::Plain,
+            octree: Default::default(),
         }
     }
 }

@@ -183,8 +183,14 @@ fn check_against_brute(p: &Packed, rays: &[RaySpec]) -> Result<(), TestCaseError
         let mut work = Work::default();
         let a = closest_hit(&s, &ray, &pre, f32::INFINITY, &mut work);
         let b = closest_hit_brute(&s, &ray, &pre, f32::INFINITY);
-        // Each primitive is tested at most once per ray.
-        prop_assert!(work.tests <= p.prims.len() as u64);
+        // Each primitive is tested at most once per ray (the octree's
+        // walk may test one once per leaf listing it).
+        let most = if p.structure() == Accel::Octree {
+            p.prims.len() + p.refs.len()
+        } else {
+            p.prims.len()
+        };
+        prop_assert!(work.tests <= most as u64);
         prop_assert_eq!(
             a.map(|h| (h.0.t, h.1)),
             b.map(|h| (h.0.t, h.1)),
@@ -241,26 +247,62 @@ proptest! {
         let s = random_scene(seed, count, clustered);
         check_against_brute(&pack_with(&s, Accel::Grid), &rays)?;
     }
+
+    /// The same for the octree, shallow and deep (a leaf of one primitive
+    /// lists many that cross it, and transparent blockers are listed in
+    /// many leaves: each must multiply a feeler's light once).
+    #[test]
+    fn octree_queries_equal_brute_force(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        max_leaf in 1u32..12,
+        max_levels in 0u32..14,
+        rays in ray_strategy(),
+    ) {
+        let s = random_scene(seed, count, clustered);
+        let p = pack_octree(&s, max_leaf, max_levels);
+        check_against_brute(&p, &rays)?;
+    }
+}
+
+fn pack_octree(s: &Scene, max_leaf: u32, max_levels: u32) -> Packed {
+    let p = pack::pack(
+        s,
+        &Settings {
+            accel: Accel::Octree,
+            octree: whitted::pack::octree::Params {
+                max_leaf,
+                max_levels,
+            },
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(p.structure(), Accel::Octree);
+    p
 }
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
-    /// Grid and BVH render the same image, bit for bit, with the same ray
-    /// counts: the same closest hits, the same transmittances.
+    /// Grid, BVH and octree render the same image, bit for bit, with the
+    /// same ray counts: the same closest hits, the same transmittances.
     #[test]
-    fn grid_and_bvh_render_the_same_image(
+    fn grid_bvh_and_octree_render_the_same_image(
         seed in 0u64..1000,
         count in 1usize..400,
         clustered: bool,
     ) {
         let s = random_scene(seed, count, clustered);
         let g = whitted::cpu::render(&pack_with(&s, Accel::Grid), &|_, _| {});
-        let b = whitted::cpu::render(&pack_with(&s, Accel::Bvh), &|_, _| {});
         prop_assert!(g.stats.eye_hit > 0);
-        prop_assert_eq!(g.stats, b.stats);
-        let differ = g.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();
-        prop_assert_eq!(differ, 0, "{} of {} pixels differ", differ, g.pixels.len());
+        for accel in [Accel::Bvh, Accel::Octree] {
+            let b = whitted::cpu::render(&pack_with(&s, accel), &|_, _| {});
+            prop_assert_eq!(g.stats, b.stats);
+            let differ = g.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();
+            prop_assert_eq!(differ, 0, "{:?}: {} of {} pixels differ", accel, differ, g.pixels.len());
+        }
     }
 }
 
@@ -293,7 +335,12 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
     for (seed, clustered) in [(3, false), (4, true), (5, true)] {
         let s = scene_with_copies(seed, 300, clustered);
         let (pg, pb) = (pack_with(&s, Accel::Grid), pack_with(&s, Accel::Bvh));
-        let (sg, sb) = (SceneView::new(&pg), SceneView::new(&pb));
+        let po = pack_with(&s, Accel::Octree);
+        let (sg, sb, so) = (
+            SceneView::new(&pg),
+            SceneView::new(&pb),
+            SceneView::new(&po),
+        );
         let mut r = Rng(seed * 7919 + 1);
         let (mut hits, mut ties) = (0, 0);
         for _ in 0..4000 {
@@ -309,6 +356,13 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
             let mut w = Work::default();
             let g = closest_hit(&sg, &ray, &pre, f32::INFINITY, &mut w);
             let b = closest_hit(&sb, &ray, &pre, f32::INFINITY, &mut w);
+            // The octree keeps the grid's order: the very same answer.
+            let key0 =
+                |h: Option<(whitted::trace::intersect::Hit<f32>, u32)>| h.map(|h| (h.0.t, h.1));
+            assert_eq!(
+                key0(closest_hit(&so, &ray, &pre, f32::INFINITY, &mut w)),
+                key0(g)
+            );
             // Within one packing, the very primitive brute force finds.
             let key =
                 |h: Option<(whitted::trace::intersect::Hit<f32>, u32)>| h.map(|h| (h.0.t, h.1));
@@ -376,7 +430,7 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
 /// a quarter here).
 #[test]
 fn the_shadow_cache_changes_no_answer() {
-    for accel in [Accel::Grid, Accel::Bvh] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
         for seed in 0..6 {
             let s = random_scene(seed, 400, false);
             let p = pack_with(&s, accel);
@@ -479,9 +533,11 @@ fn axis_parallel_rays_equal_brute_force() {
             rays.push((o, *d, 20.0));
         }
     }
-    for accel in [Accel::Grid, Accel::Bvh] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
         check_against_brute(&pack_with(&s, accel), &rays).unwrap();
     }
+    // A deep octree too: its lattice planes through the primitives' own.
+    check_against_brute(&pack_octree(&s, 1, 8), &rays).unwrap();
 }
 
 /// Rays from non-finite origins (an infinite or NaN component, as a
@@ -494,7 +550,11 @@ fn axis_parallel_rays_equal_brute_force() {
 #[test]
 fn rays_from_non_finite_origins_end_and_meet_nothing() {
     let s = random_scene(3, 300, true);
-    let packs = [pack_with(&s, Accel::Grid), pack_with(&s, Accel::Bvh)];
+    let packs = [
+        pack_with(&s, Accel::Grid),
+        pack_with(&s, Accel::Bvh),
+        pack_with(&s, Accel::Octree),
+    ];
     for o in [
         v3(f32::INFINITY, 0.0, 0.0),
         v3(0.0, f32::NEG_INFINITY, 1.0),
@@ -519,6 +579,7 @@ fn rays_from_non_finite_origins_end_and_meet_nothing() {
                 }
             }
             assert_eq!(answers[0], answers[1], "{o:?} {d:?}");
+            assert_eq!(answers[0], answers[2], "{o:?} {d:?}");
         }
     }
 }
@@ -644,11 +705,11 @@ proptest! {
         seed in 0u64..1000,
         count in 1usize..300,
         clustered: bool,
-        bvh: bool,
+        which in 0usize..3,
         points in prop::collection::vec(prop::array::uniform3(-12.0f32..12.0), 24),
     ) {
         let s = scene_with_lights(seed, count, clustered);
-        let accel = if bvh { Accel::Bvh } else { Accel::Grid };
+        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree][which];
         check_feelers(&pack_lb(&s, accel), &points)?;
     }
 }
@@ -663,10 +724,10 @@ proptest! {
         seed in 0u64..1000,
         count in 1usize..400,
         clustered: bool,
-        bvh: bool,
+        which in 0usize..3,
     ) {
         let s = scene_with_lights(seed, count, clustered);
-        let accel = if bvh { Accel::Bvh } else { Accel::Grid };
+        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree][which];
         let plain = whitted::cpu::render(&pack_with(&s, accel), &|_, _| {});
         let lb = whitted::cpu::render(&pack_lb(&s, accel), &|_, _| {});
         prop_assert!(plain.stats.shadow > 0);
@@ -689,4 +750,68 @@ fn light_buffer_cells_prune() {
     assert!(mean < n / 4.0, "{mean} refs per cell of {n} primitives");
     assert_eq!(p.lightbuf.cells, cells);
     assert_eq!(p.lightbuf.refs, p.lb_refs.len());
+}
+
+/// A feeler through glass that the octree lists in many leaves multiplies
+/// its light by the glass's k_t once, as brute force does: large glass
+/// spheres among a crowd of small opaque ones (which make the leaves
+/// small), feelers crossing the glass between them. Without the walk's
+/// leaf stretches (`Query::lo`, `hi`) a sphere listed in k leaves the
+/// feeler crosses would count k times.
+#[test]
+fn glass_in_many_leaves_counts_once_per_feeler() {
+    let mut s = random_scene(11, 0, false);
+    let mut r = Rng(77);
+    let mut objects = Vec::new();
+    for _ in 0..3000 {
+        objects.push(Object {
+            shape: Shape::Sphere {
+                center: v(r.f() * 20.0 - 10.0, r.f() * 20.0 - 10.0, r.f() * 2.0 + 6.0),
+                radius: 0.02,
+            },
+            material: 0,
+        });
+    }
+    for (k, c) in [v(-4.0, 0.0, 0.0), v(3.0, 2.0, 1.0), v(0.0, -5.0, -2.0)]
+        .into_iter()
+        .enumerate()
+    {
+        objects.push(Object {
+            shape: Shape::Sphere {
+                center: c,
+                radius: 2.5,
+            },
+            material: 2 + (k % 2) as u32,
+        });
+    }
+    s.objects = objects;
+    let p = pack_octree(&s, 2, 12);
+    assert!(p.accel.leaves > 1000, "{} leaves", p.accel.leaves);
+    let view = SceneView::new(&p);
+    let e = s.camera.from.as_vec3();
+    let eye = v3(e.x, e.y, e.z);
+    let mut through_glass = 0;
+    let mut r = Rng(5);
+    for _ in 0..2000 {
+        let a = v3(r.f() as f32 * 16.0 - 8.0, r.f() as f32 * 16.0 - 8.0, -5.0) - eye;
+        let b = v3(r.f() as f32 * 16.0 - 8.0, r.f() as f32 * 16.0 - 8.0, 5.0) - eye;
+        let dist = (b - a).length();
+        let d = (b - a) / dist;
+        let ray = Ray { o: a, d };
+        let pre = RayPre::new(d, true);
+        let mut work = Work::default();
+        let t = transmittance(&view, &ray, &pre, dist, usize::MAX, &mut work);
+        assert_eq!(
+            t,
+            transmittance_brute(&view, &ray, &pre, dist),
+            "{a:?} -> {b:?}"
+        );
+        if t.x > 0.0 && t.x < 1.0 {
+            through_glass += 1;
+            // Each glass sphere the feeler crosses was listed in more
+            // than one leaf it visited.
+            assert!(work.cells > 2, "{work:?}");
+        }
+    }
+    assert!(through_glass > 300, "{through_glass} feelers through glass");
 }

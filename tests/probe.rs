@@ -172,6 +172,7 @@ fn scenes() -> Vec<TestScene> {
         ("probe 1x1x1", Some([1, 1, 1]), Accel::Grid),
         ("probe 7x5x3", Some([7, 5, 3]), Accel::Grid),
         ("probe bvh", None, Accel::Bvh),
+        ("probe octree", None, Accel::Octree),
     ] {
         out.push(TestScene {
             name: name.into(),
@@ -186,7 +187,7 @@ fn scenes() -> Vec<TestScene> {
         });
     }
     for s in ["showcase", "mesh", "quadric"] {
-        for accel in [Accel::Grid, Accel::Bvh] {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
             out.push(TestScene {
                 name: format!("{s} {accel:?}"),
                 packed: common::load(

@@ -63,11 +63,20 @@ pub struct RenderOpts {
     #[arg(long, value_parser = parse_grid, value_name = "NXxNYxNZ")]
     pub grid: Option<[u32; 3]>,
     /// The acceleration structure: the uniform voxel grid, a
-    /// bounding-volume hierarchy (surface-area heuristic), or one chosen
-    /// per scene by the rule in docs/method.md [default: auto; with
-    /// --grid: grid].
+    /// bounding-volume hierarchy (surface-area heuristic), an octree
+    /// (subdivided where primitives crowd), or one chosen per scene by
+    /// the rule in docs/method.md [default: auto; with --grid: grid].
     #[arg(long, value_enum)]
     pub accel: Option<Accel>,
+    /// Octree: a node listing at most this many primitives is a leaf
+    /// [default: 8].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub octree_leaf: Option<u32>,
+    /// Octree: the deepest level, the root at 0; the lattice of the
+    /// deepest level has 2^N cells per axis, fewer where f32 coordinates
+    /// cannot tell them apart [default: 12].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub octree_levels: Option<u32>,
     /// How shadow feelers find their blockers: through the acceleration
     /// structure like every ray (plain), or through a light buffer per
     /// light, a direction cube whose cells list the primitives a feeler
@@ -107,6 +116,10 @@ impl RenderOpts {
             budget: self.memory_limit.unwrap_or(base.budget),
             offset: None,
             shadows: self.shadows.unwrap_or(base.shadows),
+            octree: crate::pack::octree::Params {
+                max_leaf: self.octree_leaf.unwrap_or(base.octree.max_leaf),
+                max_levels: self.octree_levels.unwrap_or(base.octree.max_levels),
+            },
         }
     }
 

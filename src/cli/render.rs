@@ -168,6 +168,10 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "BVH of {} nodes, depth {}, built in {:.3} s",
                 accel.nodes, accel.depth, accel.build_seconds
             ),
+            crate::pack::Accel::Octree => format!(
+                "octree of {} nodes, {} leaves, depth {}, built in {:.3} s",
+                accel.nodes, accel.leaves, accel.depth, accel.build_seconds
+            ),
             _ => format!(
                 "grid {}x{}x{}, {} refs, built in {:.3} s",
                 packed.grid.cells[0],

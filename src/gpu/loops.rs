@@ -161,7 +161,8 @@ pub struct LoopLoad {
     pub dims: [u32; 3],
     /// With the BVH: a typical walk's steps, `BVH_WIDTH` per level of the
     /// deepest path (a node, and its other children pushed and popped)
-    /// plus one leaf.
+    /// plus one leaf. With the octree: its leaves along a ray, each with
+    /// its descent.
     pub bvh_steps: u32,
 }
 
@@ -198,7 +199,13 @@ impl LoopLoad {
                 .max()
                 .unwrap_or(0)
         };
-        let cell_refs = longest(&p.cell_start);
+        let octree = p.structure() == crate::pack::Accel::Octree;
+        // The octree keeps its nodes where the grid keeps its offsets.
+        let cell_refs = if octree {
+            p.accel.max_leaf
+        } else {
+            longest(&p.cell_start)
+        };
         let lb_refs = if g.flags[3] > 0 {
             longest(&p.lb_start)
         } else {
@@ -214,13 +221,18 @@ impl LoopLoad {
             unbounded: g.counts[1].saturating_sub(g.counts[0]),
             cell_refs,
             lb_refs,
-            dims: if has_grid {
+            dims: if has_grid && !octree {
                 [g.grid_dims[0], g.grid_dims[1], g.grid_dims[2]]
             } else {
                 [0; 3]
             },
             bvh_steps: if p.structure() == crate::pack::Accel::Bvh && g.flags[2] > 0 {
                 crate::constants::BVH_WIDTH * (p.accel.depth + 1) + p.accel.max_leaf
+            } else if octree && has_grid {
+                // The leaves a ray crosses (at most one per lattice step,
+                // and no more than there are), each found from the root.
+                let steps = (3 * g.grid_dims[0]).min(p.accel.leaves as u32);
+                steps.saturating_mul(p.accel.depth + 1)
             } else {
                 0
             },

@@ -149,7 +149,7 @@ pub fn coarser(dims: [u32; 3]) -> [u32; 3] {
 /// them are strictly inside, by at least a few f32 steps of the
 /// coordinates' magnitude on each axis (a tiny scene far from the camera
 /// must not collapse to a box of zero width in f32).
-fn grid_box(all: &Bounds) -> ([f32; 3], [f32; 3]) {
+pub(crate) fn grid_box(all: &Bounds) -> ([f32; 3], [f32; 3]) {
     let pad = all.diagonal().max(1e-30) * 1e-5;
     let mut lo = [0f32; 3];
     let mut hi = [0f32; 3];
@@ -164,7 +164,7 @@ fn grid_box(all: &Bounds) -> ([f32; 3], [f32; 3]) {
 
 /// At most this many cells on an axis of the box `lo..hi`: each cell at
 /// least 8 f32 steps wide, so that cell boundaries stay distinct numbers.
-fn f32_cap(lo: f32, hi: f32) -> u32 {
+pub(crate) fn f32_cap(lo: f32, hi: f32) -> u32 {
     let ulp = lo.abs().max(hi.abs()) as f64 * f32::EPSILON as f64;
     if ulp.is_nan() || ulp <= 0.0 {
         return GRID_MAX_DIM;

@@ -5,6 +5,7 @@ pub mod bvh;
 pub mod grid;
 pub mod layout;
 pub mod lightbuf;
+pub mod octree;
 pub mod pages;
 pub mod polygon;
 
@@ -37,6 +38,9 @@ pub enum Accel {
     Grid,
     /// A bounding-volume hierarchy built with the surface-area heuristic.
     Bvh,
+    /// An octree, subdivided where the primitives crowd (`--octree-leaf`,
+    /// `--octree-levels`), walked leaf to leaf from exit points.
+    Octree,
     /// Chosen per scene by the rule in docs/method.md ("Choosing the
     /// structure").
     #[default]
@@ -80,6 +84,8 @@ pub struct Settings {
     pub offset: Option<f32>,
     /// `--shadows`: how shadow feelers find their blockers.
     pub shadows: Shadows,
+    /// `--octree-leaf`, `--octree-levels`: how far the octree subdivides.
+    pub octree: octree::Params,
 }
 
 impl Default for Settings {
@@ -96,6 +102,7 @@ impl Default for Settings {
             budget: Budget::system(),
             offset: None,
             shadows: Shadows::Plain,
+            octree: octree::Params::default(),
         }
     }
 }
@@ -129,9 +136,9 @@ pub enum PackError {
         count: u64,
         max: u64,
     },
-    /// `--grid` with `--accel bvh`.
-    #[error("--grid sets the voxel grid's resolution; it does not go with --accel bvh")]
-    GridWithBvh,
+    /// `--grid` with `--accel bvh` or `octree` (the structure named).
+    #[error("--grid sets the voxel grid's resolution; it does not go with --accel {0}")]
+    GridWith(&'static str),
     /// An image side over `MAX_IMAGE_SIZE`.
     #[error("image {what} {value} is over the limit of {MAX_IMAGE_SIZE}")]
     ImageSize { what: &'static str, value: u32 },
@@ -191,6 +198,7 @@ impl Preset {
                 budget: Budget::system(),
                 offset: None,
                 shadows: Shadows::Plain,
+                octree: octree::Params::default(),
             },
         }
     }
@@ -206,7 +214,7 @@ impl Preset {
 /// The acceleration structure in use and what it cost (`--stats`).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct AccelInfo {
-    /// `Grid` or `Bvh` (never `Auto`).
+    /// `Grid`, `Bvh` or `Octree` (never `Auto`).
     pub structure: Accel,
     /// Chosen by `Accel::Auto`'s rule.
     pub auto: bool,
@@ -214,8 +222,8 @@ pub struct AccelInfo {
     pub build_seconds: f64,
     /// Bytes the structure keeps for the render.
     pub bytes: usize,
-    /// BVH only (0 for the grid): nodes (4-wide), leaves, the deepest
-    /// node's depth, the most primitives in a leaf.
+    /// BVH and octree (0 for the grid): nodes (the BVH's 4-wide), leaves,
+    /// the deepest node's depth, the most primitives in a leaf.
     pub nodes: usize,
     pub leaves: usize,
     pub depth: u32,
@@ -286,10 +294,10 @@ impl Packed {
 
     /// The structure the tracers walk (`Grid` or `Bvh`).
     pub fn structure(&self) -> Accel {
-        if self.globals.flags[1] == ACCEL_BVH {
-            Accel::Bvh
-        } else {
-            Accel::Grid
+        match self.globals.flags[1] {
+            ACCEL_BVH => Accel::Bvh,
+            ACCEL_OCTREE => Accel::Octree,
+            _ => Accel::Grid,
         }
     }
 
@@ -858,8 +866,12 @@ pub fn pack_with_progress(
         explicit_grid: settings.grid.is_some(),
         bvh: false,
     };
-    if settings.accel == Accel::Bvh && settings.grid.is_some() {
-        return Err(PackError::GridWithBvh);
+    if settings.grid.is_some() {
+        match settings.accel {
+            Accel::Bvh => return Err(PackError::GridWith("bvh")),
+            Accel::Octree => return Err(PackError::GridWith("octree")),
+            _ => {}
+        }
     }
     // The image and the primitives, before any of them is allocated.
     settings.budget.check(&need)?;
@@ -945,6 +957,7 @@ pub fn pack_with_progress(
     need.bvh = structure == Accel::Bvh;
     let n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
+    let mut oct = octree::Octree::default();
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
         let tree = bvh::build(&bounds, progress);
@@ -962,6 +975,38 @@ pub fn pack_with_progress(
             ..grid::Grid::default()
         };
         (empty, tree)
+    } else if structure == Accel::Octree {
+        // The grid's order (the rank is the index); the nodes and lists
+        // take the grid's buffers (`pack::octree`).
+        let max_refs = |words: u64| need.max_refs(budget, words);
+        oct = match octree::build(&bounds, settings.octree, &max_refs) {
+            Ok(o) => o,
+            Err(r) => {
+                let over = Need {
+                    cells: r.words,
+                    refs: r.refs,
+                    ..need
+                };
+                budget.check(&over)?;
+                return Err(PackError::TooMany {
+                    what: "octree references",
+                    count: r.refs,
+                    max: u32::MAX as u64,
+                });
+            }
+        };
+        prims.extend(b.bounded.iter().map(|(p, _)| *p));
+        let side = 1u32 << oct.levels;
+        let g = grid::Grid {
+            lo: oct.lo,
+            hi: oct.hi,
+            dims: [side; 3],
+            cell: oct.cell,
+            ranges: Vec::new(),
+            cell_start: std::mem::take(&mut oct.nodes),
+            refs: std::mem::take(&mut oct.refs),
+        };
+        (g, bvh::Bvh::default())
     } else {
         let max_refs = |cells: u64| need.max_refs(budget, cells);
         let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
@@ -1027,6 +1072,12 @@ pub fn pack_with_progress(
     };
     let eps = (scale * settings.offset.unwrap_or(EPS_OFFSET_REL) as f64) as f32;
     // Light buffers over the finite primitives in `prims` order.
+    // The grid's cells, or the octree's node words.
+    let cells_kept = if structure == Accel::Octree {
+        g.cell_start.len() as u64
+    } else {
+        grid::cells_of(g.dims)
+    };
     let mut lb = lightbuf::LightBuf::default();
     let mut lb_seconds = 0.0;
     if settings.shadows == Shadows::LightBuffer && n_bounded > 0 && !lights.is_empty() {
@@ -1037,7 +1088,7 @@ pub fn pack_with_progress(
             bounds.clone()
         };
         let now = Need {
-            cells: grid::cells_of(g.dims),
+            cells: cells_kept,
             refs: g.refs.len() as u64,
             ..need
         };
@@ -1068,7 +1119,12 @@ pub fn pack_with_progress(
         Sampling::Centers => SAMPLING_CENTERS,
     };
     // At most 1023³ < 2³² (GRID_MAX_DIM).
-    let ncells = grid::cells_of(g.dims) as u32;
+    // The octree's nodes (fewer than 2^31: two words each).
+    let ncells = if structure == Accel::Octree {
+        (g.cell_start.len() / 2) as u32
+    } else {
+        grid::cells_of(g.dims) as u32
+    };
     let globals = Globals {
         cam_right: v4(right * half_w, 0.0),
         cam_up: v4(up * half_h, 0.0),
@@ -1079,7 +1135,7 @@ pub fn pack_with_progress(
             g.lo[0],
             g.lo[1],
             g.lo[2],
-            if n_bounded > 0 && structure == Accel::Grid {
+            if n_bounded > 0 && matches!(structure, Accel::Grid | Accel::Octree) {
                 1.0
             } else {
                 0.0
@@ -1099,13 +1155,17 @@ pub fn pack_with_progress(
         params: [settings.min_weight, eps, 0.0, 0.0],
         flags: [
             0,
-            if need.bvh { ACCEL_BVH } else { ACCEL_GRID },
+            match structure {
+                Accel::Bvh => ACCEL_BVH,
+                Accel::Octree => ACCEL_OCTREE,
+                _ => ACCEL_GRID,
+            },
             tree.node_count() as u32,
             lb.res,
         ],
     };
     let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4;
-    let grid_info = if need.bvh {
+    let grid_info = if structure != Accel::Grid {
         GridInfo {
             duplicates,
             ..GridInfo::default()
@@ -1124,10 +1184,14 @@ pub fn pack_with_progress(
         auto,
         build_seconds,
         bytes: if need.bvh { tree.bytes() } else { grid_bytes },
-        nodes: tree.node_count(),
-        leaves: tree.leaves as usize,
-        depth: tree.depth,
-        max_leaf: tree.max_leaf,
+        nodes: if structure == Accel::Octree {
+            ncells as usize
+        } else {
+            tree.node_count()
+        },
+        leaves: (tree.leaves + oct.leaves) as usize,
+        depth: tree.depth.max(oct.depth),
+        max_leaf: tree.max_leaf.max(oct.max_leaf),
     };
     let lightbuf = LightBufInfo {
         res: lb.res,
@@ -1602,7 +1666,7 @@ mod tests {
             },
         )
         .unwrap_err();
-        assert_eq!(e, PackError::GridWithBvh);
+        assert_eq!(e, PackError::GridWith("bvh"));
         assert!(e.to_string().contains("--accel bvh"), "{e}");
     }
 

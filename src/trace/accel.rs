@@ -1,17 +1,19 @@
 //! The tracer's two queries over the whole scene: twin of
 //! `shaders/accel.glsl`. Each tests the unbounded primitives (planes,
 //! unclipped quadrics, giants) and then walks the structure the packed
-//! scene carries (`Globals::flags.y`): the grid (`grid.rs`) or the BVH
-//! (`bvh.rs`), one traversal each serving both queries (`query.rs`).
+//! scene carries (`Globals::flags.y`): the grid (`grid.rs`), the BVH
+//! (`bvh.rs`) or the octree (`octree.rs`), one traversal each serving
+//! both queries (`query.rs`).
 
 use super::bvh::bvh_traverse;
 use super::grid::grid_traverse;
 use super::intersect::{intersect, Hit, RayPre};
 use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
+use super::octree::octree_traverse;
 use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
-use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LIGHTS};
+use crate::constants::{ACCEL_BVH, ACCEL_OCTREE, SHADOW_CACHE_LIGHTS};
 
 /// Runs query `q`: the unbounded primitives, then the structure in use.
 #[inline(always)]
@@ -27,6 +29,8 @@ pub fn accel_traverse<F: Real>(
     }
     if s.globals.flags[1] == ACCEL_BVH {
         bvh_traverse(s, ray, pre, q, work);
+    } else if s.globals.flags[1] == ACCEL_OCTREE {
+        octree_traverse(s, ray, pre, q, work);
     } else {
         grid_traverse(s, ray, pre, q, work);
     }

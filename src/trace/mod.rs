@@ -7,6 +7,7 @@ pub mod grid;
 pub mod intersect;
 pub mod lightbuf;
 pub mod math;
+pub mod octree;
 pub mod query;
 pub mod sample;
 pub mod shade;

@@ -65,6 +65,13 @@ pub struct Query<F> {
     pub trans: V3<F>,
     /// Shadow: an opaque blocker was found (the walk may stop).
     pub done: bool,
+    /// Shadow: a blocker that lets light through counts only where its
+    /// hit lies in `lo..hi` (everywhere but under the octree, whose walk
+    /// sets its current leaf's stretch of the feeler: a primitive listed
+    /// in several leaves multiplies the light once, in the leaf its hit
+    /// lies in; `trace::octree`).
+    pub lo: F,
+    pub hi: F,
 }
 
 impl<F: Real> Query<F> {
@@ -79,6 +86,8 @@ impl<F: Real> Query<F> {
             rank: u32::MAX,
             trans: V3::splat(F::one()),
             done: false,
+            lo: F::neg_infinity(),
+            hi: F::infinity(),
         }
     }
 
@@ -94,6 +103,8 @@ impl<F: Real> Query<F> {
             rank: u32::MAX,
             trans: V3::splat(F::one()),
             done: false,
+            lo: F::neg_infinity(),
+            hi: F::infinity(),
         }
     }
 }
@@ -134,6 +145,9 @@ pub fn query_prim<F: Real>(
     if let Some(h) = intersect(prim, s.extra, ray, pre, q.bound) {
         if q.shadow {
             let kt = V3::of(&s.materials[prim.material() as usize].kt);
+            if kt.max_elem() > F::zero() && !(h.t >= q.lo && h.t < q.hi) {
+                return false;
+            }
             q.trans = q.trans.mul_elem(kt);
             if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
                 work.shadow_cache[q.light] = i + 1;

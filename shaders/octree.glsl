@@ -1,0 +1,146 @@
+// Traversal of the octree: twin of src/trace/octree.rs (which explains the
+// method: from the leaf holding the ray's current lattice point, where
+// the ray leaves it, and the leaf across that face found by descending
+// from the root; a transparent blocker counts only in the leaf its hit
+// lies in).
+//
+// Nodes (src/pack/octree.rs) live in cell_start, two words each: an
+// interior node's first child and OCTREE_INTERIOR, or a leaf's offset
+// into refs and its length. g.grid_dims.x is the lattice's side, .w the
+// node count.
+#ifndef WHITTED_OCTREE_GLSL
+#define WHITTED_OCTREE_GLSL
+
+#include "precise.glsl"
+#include "query.glsl"
+
+// The leaf holding lattice cell p: its node; its side (in lattice cells)
+// in `size`. False when the descent was cut short (lavapipe's loop
+// budget).
+bool octree_leaf(ivec3 p, out uint node, out int size) {
+    node = 0u;
+    int half_side = int(g.grid_dims.x >> 1);
+    while (half_side > 0 && cell_start[2u * node + 1u] == OCTREE_INTERIOR) {
+        work_nodes += 1u;
+        uint c = ((p.x & half_side) != 0 ? 1u : 0u) | ((p.y & half_side) != 0 ? 2u : 0u)
+                 | ((p.z & half_side) != 0 ? 4u : 0u);
+        node = cell_start[2u * node] + c;
+        half_side >>= 1;
+    }
+    size = half_side == 0 ? 1 : 2 * half_side;
+    return half_side == 0 || cell_start[2u * node + 1u] != OCTREE_INTERIOR;
+}
+
+// The lattice cell holding coordinate x on axis, kept within lo..hi (a
+// NaN gives lo).
+int octree_lattice_cell(float x, int axis, int lo, int hi) {
+    PRECISE float c = (x - g.grid_min[axis]) / g.grid_cell[axis];
+    if (isnan(c) || c <= float(lo)) {
+        return lo;
+    } else if (c >= float(hi)) {
+        return hi;
+    }
+    return int(c);
+}
+
+// Walks the octree for query q: every primitive listed in the leaves the
+// ray crosses, in order along the ray, until the query is done, the ray
+// leaves the octree, or q.t lies inside the current leaf. The unbounded
+// primitives are the caller's (accel.glsl). (Loops end with `break`: see
+// grid.glsl.)
+void octree_traverse(Ray ray, RayPre pre, inout Query q) {
+    if (g.grid_min.w == 0.0) {
+        return;
+    }
+    vec3 o = ray.o;
+    vec3 d = ray.d;
+    vec3 inv = pre.inv_d;
+    float t0 = 0.0;
+    float t1 = q.t;
+    bool missed = false;
+    for (int i = 0; i < 3; i++) {
+        float lo = g.grid_min[i];
+        float hi = g.grid_max[i];
+        if (d[i] == 0.0) {
+            if (o[i] < lo || o[i] > hi) {
+                missed = true;
+            }
+            continue;
+        }
+        PRECISE float ta = (lo - o[i]) * inv[i];
+        PRECISE float tb = (hi - o[i]) * inv[i];
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+    }
+    if (missed || t0 > t1) {
+        return;
+    }
+    int side = int(g.grid_dims.x);
+    ivec3 step_dir = ivec3(d.x > 0.0 ? 1 : (d.x < 0.0 ? -1 : 0),
+                           d.y > 0.0 ? 1 : (d.y < 0.0 ? -1 : 0),
+                           d.z > 0.0 ? 1 : (d.z < 0.0 ? -1 : 0));
+    ivec3 p;
+    for (int i = 0; i < 3; i++) {
+        PRECISE float x = o[i] + d[i] * t0;
+        p[i] = octree_lattice_cell(x, i, 0, side - 1);
+    }
+    float lo_t = NEG_INF;
+    bool ended = false;
+    for (uint visited = 0u; visited < g.grid_dims.w; visited++) {
+        work_cells += 1u;
+        uint node;
+        int size;
+        if (!octree_leaf(p, node, size)) {
+            break;
+        }
+        ivec3 org = p & ivec3(~(size - 1));
+        float t_exit = INF;
+        int axis = 0;
+        for (int i = 0; i < 3; i++) {
+            if (step_dir[i] == 0) {
+                continue;
+            }
+            int edge = step_dir[i] > 0 ? org[i] + size : org[i];
+            PRECISE float plane = g.grid_min[i] + float(edge) * g.grid_cell[i];
+            PRECISE float t = (plane - o[i]) * inv[i];
+            if (t < t_exit) {
+                t_exit = t;
+                axis = i;
+            }
+        }
+        int across = step_dir[axis] > 0 ? org[axis] + size : org[axis] - 1;
+        bool last = t_exit >= t1 || across < 0 || across >= side;
+        float hi_t = last ? INF : max(t_exit, lo_t);
+        q.lo = lo_t;
+        q.hi = hi_t;
+        uint start = cell_start[2u * node];
+        uint end = start + cell_start[2u * node + 1u];
+        uint k = start;
+        for (; k < end; k++) {
+            uint r = refs[k];
+            if (query_prim(q, prims[r], r, ray, pre)) {
+                break;
+            }
+        }
+        if (!q.done && k != end) {
+            loops_cut += 1u;
+        }
+        if (q.done || q.t <= t_exit || last) {
+            ended = true;
+            break;
+        }
+        for (int i = 0; i < 3; i++) {
+            if (i != axis && step_dir[i] != 0) {
+                PRECISE float x = o[i] + d[i] * t_exit;
+                p[i] = octree_lattice_cell(x, i, org[i], org[i] + size - 1);
+            }
+        }
+        p[axis] = across;
+        lo_t = hi_t;
+    }
+    if (!ended) {
+        loops_cut += 1u;
+    }
+}
+
+#endif

@@ -1,0 +1,424 @@
+//! Building the octree over the finite primitives (docs/method.md,
+//! "Octree").
+//!
+//! The octree subdivides the grid's box (`grid::grid_box`, not a cube:
+//! each axis is halved at every level) adaptively: a node is split into
+//! eight children while it lists more than `max_leaf` primitives, above
+//! the deepest level (`max_levels`), and while the surface-area heuristic
+//! expects the split to save tests: a ray crossing the node crosses each
+//! child with probability a quarter (its share of the surface), so the
+//! split costs `NODE_COST` + Σ n_child / 4 tests against n. Primitives
+//! that overlap one another stop it where splitting only copies them
+//! into every child (a pile, or the faces of overlapping boxes, which a
+//! count rule alone would refine down to the deepest level). A primitive
+//! is listed in every leaf its bounds overlap, like a grid cell's list.
+//!
+//! Every node lies on the lattice of the deepest level: 2^L cells on each
+//! axis, L = `Octree::levels`, a node at level l spans 2^(L−l) of them. A
+//! primitive's bounds become a range of lattice cells once (grown by a
+//! thousandth of a lattice cell, like the grid's ranges, so that a hit
+//! the traversal's rounding puts one cell over is still listed there),
+//! and the build is integer arithmetic from there: no primitive is lost
+//! at a boundary. The traversal (`trace::octree`) finds the next leaf
+//! from a lattice point too.
+//!
+//! Layout (`Packed::cell_start`, which the grid's offsets use otherwise):
+//! two words per node, node 0 the root. An interior node: the index of
+//! its first child (the eight are consecutive; child k holds the half
+//! with bit 0 of k set on x, bit 1 on y, bit 2 on z) and
+//! `OCTREE_INTERIOR`; a leaf: the offset of its list in `refs` and its
+//! length.
+
+use super::grid::{grid_box, Bounds};
+use crate::constants::{OCTREE_INTERIOR, OCTREE_MAX_LEVELS};
+
+/// Cost of visiting a node (finding the leaf, leaving it) against one
+/// intersection test, for the split rule.
+pub const NODE_COST: f64 = 1.0;
+/// Default most primitives in a leaf (`--octree-leaf`). Measured on the
+/// SPD scenes and the scaling families (docs/method.md, "Octree").
+pub const DEFAULT_LEAF: u32 = 8;
+/// Default deepest level (`--octree-levels`).
+pub const DEFAULT_LEVELS: u32 = 12;
+
+/// How far the build subdivides.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Params {
+    /// A node listing at most this many primitives is a leaf.
+    pub max_leaf: u32,
+    /// The deepest level (the root at 0), at most `OCTREE_MAX_LEVELS`.
+    pub max_levels: u32,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            max_leaf: DEFAULT_LEAF,
+            max_levels: DEFAULT_LEVELS,
+        }
+    }
+}
+
+/// The octree: its box, the lattice, the nodes and the leaves' lists.
+#[derive(Clone, Debug, Default)]
+pub struct Octree {
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+    /// The lattice cell's size on each axis: (hi − lo) / 2^levels.
+    pub cell: [f32; 3],
+    /// The lattice's levels: 2^levels cells per axis.
+    pub levels: u32,
+    /// Two words per node (module docs).
+    pub nodes: Vec<u32>,
+    pub refs: Vec<u32>,
+    pub leaves: u32,
+    /// The deepest leaf's level.
+    pub depth: u32,
+    /// Most primitives in one leaf.
+    pub max_leaf: u32,
+}
+
+impl Octree {
+    pub fn node_count(&self) -> usize {
+        self.nodes.len() / 2
+    }
+
+    /// Bytes kept for the render.
+    pub fn bytes(&self) -> usize {
+        (self.nodes.len() + self.refs.len()) * 4
+    }
+}
+
+/// Why no octree was built: its nodes' words and references when it
+/// passed the budget.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Refusal {
+    pub words: u64,
+    pub refs: u64,
+}
+
+/// The most levels an axis of the box `lo..hi` allows: each lattice cell
+/// at least 8 f32 steps of the coordinates wide, so that the lattice's
+/// planes stay distinct numbers.
+fn f32_levels(lo: f32, hi: f32) -> u32 {
+    let ulp = lo.abs().max(hi.abs()) as f64 * f32::EPSILON as f64;
+    let cells = (hi as f64 - lo as f64) / (8.0 * ulp);
+    if cells.is_nan() || cells < 2.0 {
+        return 0;
+    }
+    (cells.log2().floor() as u32).min(OCTREE_MAX_LEVELS)
+}
+
+/// One primitive's lattice cells: lowest and highest on each axis.
+#[derive(Clone, Copy, Debug)]
+struct Range {
+    lo: [u32; 3],
+    hi: [u32; 3],
+}
+
+/// A node still to build: its lattice origin and side, its level, the
+/// primitives overlapping it.
+struct Task {
+    node: usize,
+    org: [u32; 3],
+    size: u32,
+    level: u32,
+    items: Vec<u32>,
+}
+
+/// Builds the octree over `bounds` (the packed finite primitives, in
+/// order: a leaf lists indices into it, ascending). `max_words(words)`:
+/// the most references the build may make with that many node words
+/// within the memory budget; refused once it passes that.
+pub fn build(
+    bounds: &[Bounds],
+    params: Params,
+    max_refs: &dyn Fn(u64) -> u64,
+) -> Result<Octree, Refusal> {
+    if bounds.is_empty() {
+        return Ok(Octree {
+            nodes: vec![0, 0],
+            leaves: 1,
+            ..Octree::default()
+        });
+    }
+    let all = bounds.iter().fold(Bounds::EMPTY, |a, b| a.union(b));
+    let (lo, hi) = grid_box(&all);
+    let levels = (0..3)
+        .map(|i| f32_levels(lo[i], hi[i]))
+        .min()
+        .unwrap_or(0)
+        .min(params.max_levels.min(OCTREE_MAX_LEVELS));
+    let side = 1u32 << levels;
+    let cell = [0, 1, 2].map(|i| (hi[i] - lo[i]) / side as f32);
+    let cell_of = |x: f64, i: usize| -> u32 {
+        let c = ((x - lo[i] as f64) / cell[i] as f64).floor();
+        (c.max(0.0) as u32).min(side - 1)
+    };
+    let ranges: Vec<Range> = bounds
+        .iter()
+        .map(|b| {
+            let margin = |i: usize| cell[i] as f64 * 1e-3;
+            Range {
+                lo: [0, 1, 2].map(|i| cell_of(b.lo[i] - margin(i), i)),
+                hi: [0, 1, 2].map(|i| cell_of(b.hi[i] + margin(i), i)),
+            }
+        })
+        .collect();
+    let mut t = Octree {
+        lo,
+        hi,
+        cell,
+        levels,
+        nodes: vec![0, 0],
+        ..Octree::default()
+    };
+    let mut stack = vec![Task {
+        node: 0,
+        org: [0; 3],
+        size: side,
+        level: 0,
+        items: (0..bounds.len() as u32).collect(),
+    }];
+    let over = |t: &Octree, extra: usize| {
+        let words = t.nodes.len() as u64;
+        let refs = (t.refs.len() + extra) as u64;
+        (refs > max_refs(words) || refs > u32::MAX as u64 || words > u32::MAX as u64)
+            .then_some(Refusal { words, refs })
+    };
+    while let Some(task) = stack.pop() {
+        let n = task.items.len();
+        let mut kids: Option<[Vec<u32>; 8]> = None;
+        if n > params.max_leaf as usize && task.size > 1 {
+            let h = task.size / 2;
+            let mut k: [Vec<u32>; 8] = Default::default();
+            for &i in &task.items {
+                let r = &ranges[i as usize];
+                // The halves the range overlaps on each axis: bit 0 the
+                // lower, bit 1 the upper.
+                let sides = [0, 1, 2].map(|a| {
+                    let mid = task.org[a] + h;
+                    (r.lo[a] < mid) as u32 | ((r.hi[a] >= mid) as u32) << 1
+                });
+                for (c, list) in k.iter_mut().enumerate() {
+                    if (0..3).all(|a| sides[a] >> ((c >> a) & 1) & 1 != 0) {
+                        list.push(i);
+                    }
+                }
+            }
+            // The surface-area heuristic: a ray crossing the node crosses
+            // a child with the child's share of its surface, a quarter,
+            // so it tests Σ n_c / 4 primitives after a node visit
+            // instead of n.
+            let split = NODE_COST + k.iter().map(|l| l.len()).sum::<usize>() as f64 / 4.0;
+            if split < n as f64 {
+                kids = Some(k);
+            }
+        }
+        match kids {
+            Some(k) => {
+                let base = t.nodes.len() / 2;
+                t.nodes[2 * task.node] = base as u32;
+                t.nodes[2 * task.node + 1] = OCTREE_INTERIOR;
+                t.nodes.extend_from_slice(&[0; 16]);
+                if let Some(r) = over(&t, 0) {
+                    return Err(r);
+                }
+                let h = task.size / 2;
+                // Pushed last to first: built depth-first, child 0 first.
+                for (c, items) in k.into_iter().enumerate().rev() {
+                    stack.push(Task {
+                        node: base + c,
+                        org: [0, 1, 2].map(|a| task.org[a] + h * ((c as u32 >> a) & 1)),
+                        size: h,
+                        level: task.level + 1,
+                        items,
+                    });
+                }
+            }
+            None => {
+                if let Some(r) = over(&t, n) {
+                    return Err(r);
+                }
+                t.nodes[2 * task.node] = t.refs.len() as u32;
+                t.nodes[2 * task.node + 1] = n as u32;
+                t.refs.extend_from_slice(&task.items);
+                t.leaves += 1;
+                t.depth = t.depth.max(task.level);
+                t.max_leaf = t.max_leaf.max(n as u32);
+            }
+        }
+    }
+    Ok(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(c: [f64; 3], r: f64) -> Bounds {
+        Bounds {
+            lo: c.map(|x| x - r),
+            hi: c.map(|x| x + r),
+        }
+    }
+
+    fn free(_: u64) -> u64 {
+        u64::MAX
+    }
+
+    /// The leaf holding lattice cell `p`: (node, origin, size).
+    fn leaf_of(t: &Octree, p: [u32; 3]) -> (usize, [u32; 3], u32) {
+        let mut node = 0usize;
+        let mut size = 1u32 << t.levels;
+        let mut org = [0u32; 3];
+        while t.nodes[2 * node + 1] == OCTREE_INTERIOR {
+            size /= 2;
+            let c = (0..3).fold(0, |c, a| c | (((p[a] & size) != 0) as usize) << a);
+            for (a, o) in org.iter_mut().enumerate() {
+                *o += size * ((c as u32 >> a) & 1);
+            }
+            node = t.nodes[2 * node] as usize + c;
+        }
+        (node, org, size)
+    }
+
+    #[test]
+    fn every_leaf_a_primitive_overlaps_lists_it() {
+        // Random small cubes, a few large ones, a pile of equal ones.
+        let mut s = 12345u64;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut b: Vec<Bounds> = (0..3000)
+            .map(|_| cube([rnd() * 100.0, rnd() * 100.0, rnd() * 10.0], rnd() * 0.5))
+            .collect();
+        b.extend((0..5).map(|_| cube([rnd() * 100.0, rnd() * 100.0, 5.0], 20.0)));
+        b.extend((0..40).map(|_| cube([50.0, 50.0, 5.0], 0.1)));
+        let t = build(&b, Params::default(), &free).unwrap();
+        assert!(t.leaves > 100, "{}", t.leaves);
+        let side = 1u32 << t.levels;
+        // Walk a sample of lattice cells: each leaf lists exactly the
+        // primitives whose cells meet it, ascending.
+        let cell_of = |x: f64, i: usize| {
+            (((x - t.lo[i] as f64) / t.cell[i] as f64).floor().max(0.0) as u32).min(side - 1)
+        };
+        let mut checked = 0;
+        for i in (0..b.len()).step_by(7) {
+            let c = [0, 1, 2].map(|a| cell_of((b[i].lo[a] + b[i].hi[a]) / 2.0, a));
+            let (node, org, size) = leaf_of(&t, c);
+            let (start, n) = (t.nodes[2 * node] as usize, t.nodes[2 * node + 1] as usize);
+            let list = &t.refs[start..start + n];
+            assert!(list.contains(&(i as u32)), "{i} not in its leaf");
+            assert!(list.windows(2).all(|w| w[0] < w[1]));
+            for &j in list {
+                let bj = &b[j as usize];
+                for (a, &o) in org.iter().enumerate() {
+                    let (l, h) = (cell_of(bj.lo[a] - 1.0, a), cell_of(bj.hi[a] + 1.0, a));
+                    assert!(l < o + size && h >= o, "{j} listed far from its leaf");
+                }
+            }
+            checked += 1;
+        }
+        assert!(checked > 400);
+        // The pile of 40 equal cubes cannot be split: one leaf holds them
+        // all, at a level above the deepest.
+        assert!(t.max_leaf >= 40 && t.max_leaf < 60, "{}", t.max_leaf);
+    }
+
+    #[test]
+    fn leaves_hold_at_most_max_leaf_where_they_can_be_split() {
+        let b: Vec<Bounds> = (0..512)
+            .map(|i| {
+                let c = [(i % 8) as f64, ((i / 8) % 8) as f64, (i / 64) as f64];
+                cube(c.map(|x| x * 10.0), 1.0)
+            })
+            .collect();
+        for max_leaf in [1, 4, 8] {
+            let t = build(
+                &b,
+                Params {
+                    max_leaf,
+                    max_levels: DEFAULT_LEVELS,
+                },
+                &free,
+            )
+            .unwrap();
+            assert!(t.max_leaf <= max_leaf, "{max_leaf}: {}", t.max_leaf);
+            // Separated cubes are each in one leaf.
+            assert_eq!(t.refs.len(), 512, "{max_leaf}");
+        }
+        let t = build(
+            &b,
+            Params {
+                max_leaf: 1,
+                max_levels: 2,
+            },
+            &free,
+        )
+        .unwrap();
+        assert_eq!(t.levels, 2);
+        assert_eq!(t.depth, 2);
+        assert_eq!(t.leaves, 64);
+        assert_eq!(t.max_leaf, 8);
+    }
+
+    #[test]
+    fn overlapping_primitives_stop_the_subdivision() {
+        // Nine large cubes overlapping one another, and a few small ones:
+        // a count rule would refine the faces of the overlaps down to the
+        // deepest level (billions of leaves at 16 levels).
+        let mut b: Vec<Bounds> = (0..9)
+            .map(|i| cube([i as f64 * 0.3, (i % 3) as f64 * 0.2, 0.0], 10.0))
+            .collect();
+        b.extend((0..60).map(|i| {
+            cube(
+                [(i % 20) as f64 * 2.0 - 20.0, 15.0 - (i / 20) as f64, 7.3],
+                0.1,
+            )
+        }));
+        let t = build(
+            &b,
+            Params {
+                max_leaf: 1,
+                max_levels: 16,
+            },
+            &free,
+        )
+        .unwrap();
+        assert!(t.node_count() < 2000, "{} nodes", t.node_count());
+        assert!(t.refs.len() < 2000, "{} refs", t.refs.len());
+        // The small cubes are still separated.
+        assert!(t.depth >= 5, "depth {}", t.depth);
+    }
+
+    #[test]
+    fn the_budget_refuses_before_the_lists_grow_past_it() {
+        let b: Vec<Bounds> = (0..1000)
+            .map(|i| cube([i as f64, (i * 7 % 13) as f64, 0.0], 3.0))
+            .collect();
+        let whole = build(&b, Params::default(), &free).unwrap();
+        let cap = whole.refs.len() as u64 / 2;
+        let r = build(&b, Params::default(), &|_| cap).unwrap_err();
+        assert!(r.refs > cap && r.refs <= cap + 1000, "{r:?}");
+    }
+
+    #[test]
+    fn one_primitive_or_none_is_one_leaf() {
+        let t = build(&[], Params::default(), &free).unwrap();
+        assert_eq!((t.nodes.clone(), t.leaves), (vec![0, 0], 1));
+        let t = build(&[cube([1.0, 2.0, 3.0], 1.0)], Params::default(), &free).unwrap();
+        assert_eq!((t.nodes.clone(), t.refs.clone()), (vec![0, 1], vec![0]));
+    }
+
+    #[test]
+    fn levels_stop_where_f32_planes_would_merge() {
+        assert_eq!(f32_levels(0.0, 1.0), OCTREE_MAX_LEVELS);
+        // 1e6 .. 1e6 + 1: an f32 step there is 1/16; 2 cells of 8 steps.
+        assert_eq!(f32_levels(1.0e6, 1.0e6 + 1.0), 0);
+        assert_eq!(f32_levels(1.0e6, 1.0e6 + 16.0), 4);
+    }
+}

@@ -1,0 +1,163 @@
+//! Traversal of the octree: twin of `shaders/octree.glsl`.
+//!
+//! The lecture's method: from the leaf holding the ray's current point,
+//! find where the ray leaves it, and the leaf on the other side of that
+//! face by descending from the root to the point just across it. The
+//! point is a cell of the deepest level's lattice (`pack::octree`), so
+//! "just across" is exact: one lattice cell past the face on the axis the
+//! ray leaves by, and on the other axes the cell the exit point lies in,
+//! kept inside the leaf's face. No nudged float point, no leaf skipped.
+//!
+//! One traversal serves both queries (`query.rs`). The closest hit keeps
+//! the best hit across leaves and stops once it lies inside the current
+//! leaf, as in the grid. A primitive listed in several leaves may be
+//! tested in each: that changes no closest hit (the same hit, the same
+//! rank), but a feeler would multiply a transparent blocker's k_t once per
+//! leaf, so the walk gives the query the leaf's stretch of the feeler
+//! (`Query::lo`, `hi`) and a transparent blocker counts only in the leaf
+//! its hit lies in. The stretches follow one another (each starts where
+//! the last ended, the first at −∞, the last ends at +∞), so every hit
+//! lies in exactly one.
+
+use super::intersect::RayPre;
+use super::math::{Ray, Real};
+use super::query::{query_prim, Query, Work};
+use super::SceneView;
+use crate::constants::OCTREE_INTERIOR;
+
+/// The leaf holding lattice cell `p`: its node and its side in lattice
+/// cells (its origin is `p` with the bits below the side cleared).
+#[inline(always)]
+pub fn octree_leaf(s: &SceneView, p: [i32; 3], work: &mut Work) -> (usize, i32) {
+    let mut node = 0usize;
+    let mut half = (s.globals.grid_dims[0] >> 1) as i32;
+    while half > 0 && s.cell_start[2 * node + 1] == OCTREE_INTERIOR {
+        work.nodes += 1;
+        let c = ((p[0] & half) != 0) as usize
+            | (((p[1] & half) != 0) as usize) << 1
+            | (((p[2] & half) != 0) as usize) << 2;
+        node = s.cell_start[2 * node] as usize + c;
+        half >>= 1;
+    }
+    (node, if half == 0 { 1 } else { 2 * half })
+}
+
+/// The lattice cell holding coordinate `x` on `axis`, kept within
+/// `lo..=hi` (a NaN gives `lo`): floor, by truncation on the positive
+/// values left after the clamp.
+#[inline(always)]
+fn lattice_cell<F: Real>(s: &SceneView, x: F, axis: usize, lo: i32, hi: i32) -> i32 {
+    let g = s.globals;
+    let c = (x - F::of(g.grid_min[axis])) / F::of(g.grid_cell[axis]);
+    if c.is_nan() || c <= F::of(lo as f32) {
+        lo
+    } else if c >= F::of(hi as f32) {
+        hi
+    } else {
+        c.trunc_i32()
+    }
+}
+
+/// Walks the octree for query `q`: every primitive listed in the leaves
+/// the ray crosses, in order along the ray, until the query is done, the
+/// ray leaves the octree, or `q.t` lies inside the current leaf. The
+/// unbounded primitives are the caller's (`accel.rs`).
+#[inline(always)]
+pub fn octree_traverse<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    q: &mut Query<F>,
+    work: &mut Work,
+) {
+    let g = s.globals;
+    if g.grid_min[3] == 0.0 {
+        return;
+    }
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
+    // Clipped to the box, as the grid's walk (grid::dda_setup).
+    let mut t0 = F::zero();
+    let mut t1 = q.t;
+    for i in 0..3 {
+        let (lo, hi) = (F::of(g.grid_min[i]), F::of(g.grid_max[i]));
+        if d[i] == F::zero() {
+            if o[i] < lo || o[i] > hi {
+                return;
+            }
+            continue;
+        }
+        let ta = (lo - o[i]) * inv[i];
+        let tb = (hi - o[i]) * inv[i];
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    if t0 > t1 {
+        return;
+    }
+    let side = g.grid_dims[0] as i32;
+    let step = d.map(|x| {
+        if x > F::zero() {
+            1
+        } else if x < F::zero() {
+            -1
+        } else {
+            0
+        }
+    });
+    let mut p = [0i32; 3];
+    for i in 0..3 {
+        p[i] = lattice_cell(s, o[i] + d[i] * t0, i, 0, side - 1);
+    }
+    let mut lo = F::neg_infinity();
+    // Each step enters another leaf, so a walk takes at most one step per
+    // leaf (the bound keeps a NaN ray finite).
+    for _ in 0..g.grid_dims[3] {
+        work.cells += 1;
+        let (node, size) = octree_leaf(s, p, work);
+        let org = p.map(|c| c & !(size - 1));
+        // Where the ray leaves the leaf, and across which axis (the lower
+        // axis on a tie, as the grid's dda_exit).
+        let mut t_exit = F::infinity();
+        let mut axis = 0;
+        for i in 0..3 {
+            if step[i] == 0 {
+                continue;
+            }
+            let edge = if step[i] > 0 { org[i] + size } else { org[i] };
+            let plane = F::of(g.grid_min[i]) + F::of(edge as f32) * F::of(g.grid_cell[i]);
+            let t = (plane - o[i]) * inv[i];
+            if t < t_exit {
+                t_exit = t;
+                axis = i;
+            }
+        }
+        let across = if step[axis] > 0 {
+            org[axis] + size
+        } else {
+            org[axis] - 1
+        };
+        let last = t_exit >= t1 || across < 0 || across >= side;
+        let hi = if last { F::infinity() } else { t_exit.max(lo) };
+        q.lo = lo;
+        q.hi = hi;
+        let (start, count) = (s.cell_start[2 * node], s.cell_start[2 * node + 1]);
+        for k in start..start + count {
+            let r = s.refs[k as usize];
+            if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
+                return;
+            }
+        }
+        if q.t <= t_exit || last {
+            return;
+        }
+        for i in 0..3 {
+            if i != axis && step[i] != 0 {
+                p[i] = lattice_cell(s, o[i] + d[i] * t_exit, i, org[i], org[i] + size - 1);
+            }
+        }
+        p[axis] = across;
+        lo = hi;
+    }
+}
