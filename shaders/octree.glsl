@@ -1,8 +1,9 @@
 // Traversal of the octree: twin of src/trace/octree.rs (which explains the
 // method: from the leaf holding the ray's current lattice point, where
-// the ray leaves it, and the leaf across that face found by descending
-// from the root; a transparent blocker counts only in the leaf its hit
-// lies in).
+// the ray leaves it, and the leaf across that face, found by descending
+// from the deepest node on the current leaf's path that holds it; a
+// closest-hit query skips the primitives the previous leaf listed too; a
+// transparent blocker counts only in the leaf its hit lies in).
 //
 // Nodes (src/pack/octree.rs) live in cell_start, two words each: an
 // interior node's first child and OCTREE_INTERIOR, or a leaf's offset
@@ -14,21 +15,34 @@
 #include "precise.glsl"
 #include "query.glsl"
 
-// The leaf holding lattice cell p: its node; its side (in lattice cells)
-// in `size`. False when the descent was cut short (lavapipe's loop
-// budget).
-bool octree_leaf(ivec3 p, out uint node, out int size) {
-    node = 0u;
-    int half_side = int(g.grid_dims.x >> 1);
+// The nodes from the root to the current leaf (Rust: the walk's `path`).
+uint octree_path[OCTREE_MAX_LEVELS + 1u];
+
+// The leaf holding lattice cell p, found from the node at `level` on
+// octree_path (which must hold p) down: the leaf's level, with the nodes
+// down to it on octree_path; its side (in lattice cells) in `size`. False
+// when the descent was cut short (lavapipe's loop budget).
+bool octree_leaf(ivec3 p, inout uint level, out int size) {
+    uint node = octree_path[level];
+    int half_side = int(g.grid_dims.x >> (level + 1u));
     while (half_side > 0 && cell_start[2u * node + 1u] == OCTREE_INTERIOR) {
         work_nodes += 1u;
         uint c = ((p.x & half_side) != 0 ? 1u : 0u) | ((p.y & half_side) != 0 ? 2u : 0u)
                  | ((p.z & half_side) != 0 ? 4u : 0u);
         node = cell_start[2u * node] + c;
+        level += 1u;
+        octree_path[level] = node;
         half_side >>= 1;
     }
     size = half_side == 0 ? 1 : 2 * half_side;
     return half_side == 0 || cell_start[2u * node + 1u] != OCTREE_INTERIOR;
+}
+
+// The deepest level whose node holding lattice cell a also holds b (a !=
+// b; Rust: octree_common_level): L - 1 - the highest differing bit.
+uint octree_common_level(uint side, ivec3 a, ivec3 b) {
+    uint diff = uint((a.x ^ b.x) | (a.y ^ b.y) | (a.z ^ b.z));
+    return uint(max(findMSB(side) - 1 - findMSB(diff), 0));
 }
 
 // The lattice cell holding coordinate x on axis, kept within lo..hi (a
@@ -85,14 +99,20 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
         p[i] = octree_lattice_cell(x, i, 0, side - 1);
     }
     float lo_t = NEG_INF;
+    octree_path[0] = 0u;
+    uint level = 0u;
+    // The previous leaf's list.
+    uint prev_start = 0u;
+    uint prev_end = 0u;
     bool ended = false;
     for (uint visited = 0u; visited < g.grid_dims.w; visited++) {
         work_cells += 1u;
-        uint node;
+        uint leaf_level = level;
         int size;
-        if (!octree_leaf(p, node, size)) {
+        if (!octree_leaf(p, leaf_level, size)) {
             break;
         }
+        uint node = octree_path[leaf_level];
         ivec3 org = p & ivec3(~(size - 1));
         float t_exit = INF;
         int axis = 0;
@@ -115,13 +135,26 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
         q.hi = hi_t;
         uint start = cell_start[2u * node];
         uint end = start + cell_start[2u * node + 1u];
+        uint j = prev_start;
         uint k = start;
         for (; k < end; k++) {
             uint r = refs[k];
+            // Listed in the previous leaf too (both lists ascend): a
+            // closest-hit query tested it there.
+            if (!q.shadow) {
+                while (j < prev_end && refs[j] < r) {
+                    j++;
+                }
+                if (j < prev_end && refs[j] == r) {
+                    continue;
+                }
+            }
             if (query_prim(q, prims[r], r, ray, pre)) {
                 break;
             }
         }
+        prev_start = start;
+        prev_end = end;
         if (!q.done && k != end) {
             loops_cut += 1u;
         }
@@ -135,7 +168,9 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
                 p[i] = octree_lattice_cell(x, i, org[i], org[i] + size - 1);
             }
         }
+        ivec3 prev = p;
         p[axis] = across;
+        level = min(octree_common_level(uint(side), prev, p), leaf_level);
         lo_t = hi_t;
     }
     if (!ended) {

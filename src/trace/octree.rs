@@ -8,12 +8,18 @@
 //! ray leaves by, and on the other axes the cell the exit point lies in,
 //! kept inside the leaf's face. No nudged float point, no leaf skipped.
 //!
+//! The descent to the next leaf starts at the deepest node on the path
+//! to the current one that holds the next point (the highest bit in
+//! which the two lattice cells differ says which), not at the root.
+//!
 //! One traversal serves both queries (`query.rs`). The closest hit keeps
 //! the best hit across leaves and stops once it lies inside the current
 //! leaf, as in the grid. A primitive listed in several leaves may be
-//! tested in each: that changes no closest hit (the same hit, the same
-//! rank), but a feeler would multiply a transparent blocker's k_t once per
-//! leaf, so the walk gives the query the leaf's stretch of the feeler
+//! tested in each. For a closest hit that changes nothing (the same hit,
+//! the same rank), and the walk skips a primitive the previous leaf
+//! listed too (leaf lists ascend, so one merge pass finds them). A feeler
+//! would multiply a transparent blocker's k_t once per leaf, so the walk
+//! gives the query the leaf's stretch of the feeler
 //! (`Query::lo`, `hi`) and a transparent blocker counts only in the leaf
 //! its hit lies in. The stretches follow one another (each starts where
 //! the last ended, the first at −∞, the last ends at +∞), so every hit
@@ -23,23 +29,43 @@ use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
-use crate::constants::OCTREE_INTERIOR;
+use crate::constants::{OCTREE_INTERIOR, OCTREE_MAX_LEVELS};
 
-/// The leaf holding lattice cell `p`: its node and its side in lattice
-/// cells (its origin is `p` with the bits below the side cleared).
+/// The leaf holding lattice cell `p`, found from the node at `level` on
+/// `path` (which must hold `p`) down: the leaf's level, with the nodes
+/// down to it on `path`, and its side in lattice cells (its origin is `p`
+/// with the bits below the side cleared).
 #[inline(always)]
-pub fn octree_leaf(s: &SceneView, p: [i32; 3], work: &mut Work) -> (usize, i32) {
-    let mut node = 0usize;
-    let mut half = (s.globals.grid_dims[0] >> 1) as i32;
+pub fn octree_leaf(
+    s: &SceneView,
+    p: [i32; 3],
+    path: &mut [u32; OCTREE_MAX_LEVELS as usize + 1],
+    mut level: usize,
+    work: &mut Work,
+) -> (usize, i32) {
+    let mut node = path[level] as usize;
+    let mut half = (s.globals.grid_dims[0] >> (level + 1)) as i32;
     while half > 0 && s.cell_start[2 * node + 1] == OCTREE_INTERIOR {
         work.nodes += 1;
         let c = ((p[0] & half) != 0) as usize
             | (((p[1] & half) != 0) as usize) << 1
             | (((p[2] & half) != 0) as usize) << 2;
         node = s.cell_start[2 * node] as usize + c;
+        level += 1;
+        path[level] = node as u32;
         half >>= 1;
     }
-    (node, if half == 0 { 1 } else { 2 * half })
+    (level, if half == 0 { 1 } else { 2 * half })
+}
+
+/// The deepest level whose node holding lattice cell `a` also holds `b`
+/// (`a` ≠ `b`): the nodes at level l share the bits of their cells from
+/// bit L − l up (L the lattice's levels, `side` = 2^L).
+#[inline(always)]
+pub fn octree_common_level(side: u32, a: [i32; 3], b: [i32; 3]) -> usize {
+    let diff = ((a[0] ^ b[0]) | (a[1] ^ b[1]) | (a[2] ^ b[2])) as u32;
+    // side = 2^L: L − 1 − (the highest differing bit).
+    (diff.leading_zeros() as i32 - side.leading_zeros() as i32 - 1).max(0) as usize
 }
 
 /// The lattice cell holding coordinate `x` on `axis`, kept within
@@ -111,11 +137,19 @@ pub fn octree_traverse<F: Real>(
         p[i] = lattice_cell(s, o[i] + d[i] * t0, i, 0, side - 1);
     }
     let mut lo = F::neg_infinity();
+    // The nodes from the root to the current leaf: the next leaf is
+    // found from the deepest of them that holds the next point, not from
+    // the root (about a third of the descents on SPD rings).
+    let mut path = [0u32; OCTREE_MAX_LEVELS as usize + 1];
+    let mut level = 0usize;
+    // The previous leaf's list (offset, length).
+    let (mut prev_start, mut prev_count) = (0u32, 0u32);
     // Each step enters another leaf, so a walk takes at most one step per
     // leaf (the bound keeps a NaN ray finite).
     for _ in 0..g.grid_dims[3] {
         work.cells += 1;
-        let (node, size) = octree_leaf(s, p, work);
+        let (leaf_level, size) = octree_leaf(s, p, &mut path, level, work);
+        let node = path[leaf_level] as usize;
         let org = p.map(|c| c & !(size - 1));
         // Where the ray leaves the leaf, and across which axis (the lower
         // axis on a tie, as the grid's dda_exit).
@@ -143,12 +177,24 @@ pub fn octree_traverse<F: Real>(
         q.lo = lo;
         q.hi = hi;
         let (start, count) = (s.cell_start[2 * node], s.cell_start[2 * node + 1]);
+        let (prev_end, mut j) = (prev_start + prev_count, prev_start);
         for k in start..start + count {
             let r = s.refs[k as usize];
+            // Listed in the previous leaf too (both lists ascend): a
+            // closest-hit query tested it there.
+            if !q.shadow {
+                while j < prev_end && s.refs[j as usize] < r {
+                    j += 1;
+                }
+                if j < prev_end && s.refs[j as usize] == r {
+                    continue;
+                }
+            }
             if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
                 return;
             }
         }
+        (prev_start, prev_count) = (start, count);
         if q.t <= t_exit || last {
             return;
         }
@@ -157,7 +203,9 @@ pub fn octree_traverse<F: Real>(
                 p[i] = lattice_cell(s, o[i] + d[i] * t_exit, i, org[i], org[i] + size - 1);
             }
         }
+        let prev = p;
         p[axis] = across;
+        level = octree_common_level(side as u32, prev, p).min(leaf_level);
         lo = hi;
     }
 }
