@@ -206,6 +206,7 @@ pub fn values(knob: Knob, gpu: bool) -> Vec<(String, Config)> {
         Knob::Accel => vec![
             with("grid".into(), &|c| c.accel = Accel::Grid),
             with("bvh".into(), &|c| c.accel = Accel::Bvh),
+            with("octree".into(), &|c| c.accel = Accel::Octree),
         ],
         Knob::Shadows => vec![
             with("plain".into(), &|c| c.shadows = crate::pack::Shadows::Plain),
