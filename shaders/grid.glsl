@@ -42,22 +42,19 @@ float dda_boundary(Dda dda, int axis) {
     return t;
 }
 
-// Clips the ray to the grid; false when it misses the grid or the grid is empty.
-bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
-    if (g.grid_min.w == 0.0) {
-        return false;
-    }
-    vec3 o = ray.o;
-    vec3 d = ray.d;
-    vec3 inv = pre.inv_d;
-    float t0 = 0.0;
-    float t1 = tmax;
+// The stretch t0..t1 of the segment 0..tmax of the ray inside the
+// structure's box (g.grid_min..grid_max, which the grid and the octree
+// share); false when it misses the box (Rust: clip_to_box).
+bool clip_to_box(vec3 o, vec3 d, vec3 inv, float tmax, out float t0, out float t1) {
+    t0 = 0.0;
+    t1 = tmax;
+    bool missed = false;
     for (int i = 0; i < 3; i++) {
         float lo = g.grid_min[i];
         float hi = g.grid_max[i];
         if (d[i] == 0.0) {
             if (o[i] < lo || o[i] > hi) {
-                return false;
+                missed = true;
             }
             continue;
         }
@@ -66,7 +63,20 @@ bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
         t0 = max(t0, min(ta, tb));
         t1 = min(t1, max(ta, tb));
     }
-    if (t0 > t1) {
+    return !missed && !(t0 > t1);
+}
+
+// Clips the ray to the grid; false when it misses the grid or the grid is empty.
+bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
+    if (g.grid_min.w == 0.0) {
+        return false;
+    }
+    vec3 o = ray.o;
+    vec3 d = ray.d;
+    vec3 inv = pre.inv_d;
+    float t0;
+    float t1;
+    if (!clip_to_box(o, d, inv, tmax, t0, t1)) {
         return false;
     }
     dda.cell = ivec3(0);

@@ -13,6 +13,7 @@
 #define WHITTED_OCTREE_GLSL
 
 #include "precise.glsl"
+#include "grid.glsl"
 #include "query.glsl"
 
 // The nodes from the root to the current leaf (Rust: the walk's `path`).
@@ -69,24 +70,9 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
     vec3 o = ray.o;
     vec3 d = ray.d;
     vec3 inv = pre.inv_d;
-    float t0 = 0.0;
-    float t1 = q.t;
-    bool missed = false;
-    for (int i = 0; i < 3; i++) {
-        float lo = g.grid_min[i];
-        float hi = g.grid_max[i];
-        if (d[i] == 0.0) {
-            if (o[i] < lo || o[i] > hi) {
-                missed = true;
-            }
-            continue;
-        }
-        PRECISE float ta = (lo - o[i]) * inv[i];
-        PRECISE float tb = (hi - o[i]) * inv[i];
-        t0 = max(t0, min(ta, tb));
-        t1 = min(t1, max(ta, tb));
-    }
-    if (missed || t0 > t1) {
+    float t0;
+    float t1;
+    if (!clip_to_box(o, d, inv, q.t, t0, t1)) {
         return;
     }
     int side = int(g.grid_dims.x);

@@ -49,15 +49,19 @@ pub fn dda_boundary<F: Real>(s: &SceneView, dda: &Dda<F>, axis: usize) -> F {
     (plane - dda.o[axis]) * dda.inv[axis]
 }
 
-/// Clips the ray to the grid; `None` when it misses the grid or the grid is empty.
-pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F) -> Option<Dda<F>> {
+/// The stretch t0..t1 of the segment 0..`tmax` of the ray (origin `o`,
+/// direction `d`, 1/d `inv`, per axis) inside the structure's box
+/// (`Globals::grid_min..grid_max`, which the grid and the octree share);
+/// `None` when it misses the box.
+#[inline(always)]
+pub fn clip_to_box<F: Real>(
+    s: &SceneView,
+    o: &[F; 3],
+    d: &[F; 3],
+    inv: &[F; 3],
+    tmax: F,
+) -> Option<(F, F)> {
     let g = s.globals;
-    if g.grid_min[3] == 0.0 {
-        return None;
-    }
-    let o = [ray.o.x, ray.o.y, ray.o.z];
-    let d = [ray.d.x, ray.d.y, ray.d.z];
-    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
     let mut t0 = F::zero();
     let mut t1 = tmax;
     for i in 0..3 {
@@ -73,9 +77,25 @@ pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
         t0 = t0.max(ta.min(tb));
         t1 = t1.min(ta.max(tb));
     }
+    // Not `t0 <= t1`: a NaN goes on, as before this was shared (the walks
+    // bound their steps).
     if t0 > t1 {
+        None
+    } else {
+        Some((t0, t1))
+    }
+}
+
+/// Clips the ray to the grid; `None` when it misses the grid or the grid is empty.
+pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F) -> Option<Dda<F>> {
+    let g = s.globals;
+    if g.grid_min[3] == 0.0 {
         return None;
     }
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
+    let (t0, t1) = clip_to_box(s, &o, &d, &inv, tmax)?;
     let mut dda = Dda {
         cell: [0; 3],
         step: [0; 3],

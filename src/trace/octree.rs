@@ -25,6 +25,7 @@
 //! the last ended, the first at −∞, the last ends at +∞), so every hit
 //! lies in exactly one.
 
+use super::grid::clip_to_box;
 use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
@@ -103,25 +104,9 @@ pub fn octree_traverse<F: Real>(
     let o = [ray.o.x, ray.o.y, ray.o.z];
     let d = [ray.d.x, ray.d.y, ray.d.z];
     let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
-    // Clipped to the box, as the grid's walk (grid::dda_setup).
-    let mut t0 = F::zero();
-    let mut t1 = q.t;
-    for i in 0..3 {
-        let (lo, hi) = (F::of(g.grid_min[i]), F::of(g.grid_max[i]));
-        if d[i] == F::zero() {
-            if o[i] < lo || o[i] > hi {
-                return;
-            }
-            continue;
-        }
-        let ta = (lo - o[i]) * inv[i];
-        let tb = (hi - o[i]) * inv[i];
-        t0 = t0.max(ta.min(tb));
-        t1 = t1.min(ta.max(tb));
-    }
-    if t0 > t1 {
+    let Some((t0, t1)) = clip_to_box(s, &o, &d, &inv, q.t) else {
         return;
-    }
+    };
     let side = g.grid_dims[0] as i32;
     let step = d.map(|x| {
         if x > F::zero() {
