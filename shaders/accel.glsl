@@ -21,7 +21,11 @@ void accel_traverse(Ray ray, RayPre pre, inout Query q) {
     if (g.flags.y == ACCEL_BVH) {
         bvh_traverse(ray, pre, q);
     } else if (g.flags.y == ACCEL_OCTREE) {
-        octree_traverse(ray, pre, q);
+        if (g.flags.z == OCTREE_WALK_STACK) {
+            octree_traverse_stack(ray, pre, q);
+        } else {
+            octree_traverse(ray, pre, q);
+        }
     } else {
         grid_traverse(ray, pre, q);
     }

@@ -21,7 +21,8 @@ struct Globals {
     uvec4 image;      // x: width, y: height, z: samples per pixel, w: sampling mode
     uvec4 trace;      // x: max depth, y: feature bits, z, w: strata in x, y
     vec4 params;      // x: min weight, y: surface offset
-    uvec4 flags;      // x: counting flags (FLAG_*), y: ACCEL_*, z: BVH interior nodes,
+    uvec4 flags;      // x: counting flags (FLAG_*), y: ACCEL_*, z: BVH nodes (under the
+                      // octree: OCTREE_WALK_*),
                       // w: light buffer resolution (0: none)
 };
 

@@ -87,7 +87,7 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
     float lo_t = NEG_INF;
     octree_path[0] = 0u;
     uint level = 0u;
-    // The previous leaf's list.
+    // The list of the previous leaf that listed any.
     uint prev_start = 0u;
     uint prev_end = 0u;
     bool ended = false;
@@ -139,8 +139,10 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
                 break;
             }
         }
-        prev_start = start;
-        prev_end = end;
+        if (end > start) {
+            prev_start = start;
+            prev_end = end;
+        }
         if (!q.done && k != end) {
             loops_cut += 1u;
         }
@@ -158,6 +160,159 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
         p[axis] = across;
         level = min(octree_common_level(uint(side), prev, p), leaf_level);
         lo_t = hi_t;
+    }
+    if (!ended) {
+        loops_cut += 1u;
+    }
+}
+
+// The lattice plane `edge` on axis, and where a ray crosses it. (Functions
+// of plain values: glslang's `precise` propagation, inlined into the
+// stack walk, traced every pending node's history and ran out of memory.)
+float octree_plane(int axis, int edge) {
+    PRECISE float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
+    return plane;
+}
+
+float octree_plane_t(float plane, float o, float inv) {
+    PRECISE float t = (plane - o) * inv;
+    return t;
+}
+
+// One pending node of the stack walk (Rust: Pending).
+struct OctreePending {
+    uint node;
+    ivec3 org;
+    uint level;
+    float t_in;
+    float t_out;
+};
+
+OctreePending octree_stack[OCTREE_STACK_SIZE];
+
+OctreePending octree_child(OctreePending cur, uint base, int half_side, uint bits, float t_in,
+                           float t_out) {
+    ivec3 b = ivec3(int(bits & 1u), int((bits >> 1) & 1u), int((bits >> 2) & 1u));
+    return OctreePending(base + bits, cur.org + half_side * b, cur.level + 1u, t_in, t_out);
+}
+
+// Walks the octree for query q top down with a stack (--octree-walk
+// stack; Rust: octree_traverse_stack, which explains it): at an interior
+// node the children the ray passes through, in order, from where it
+// crosses the mid-planes; the first walked, the others pushed.
+void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
+    if (g.grid_min.w == 0.0) {
+        return;
+    }
+    vec3 o = ray.o;
+    vec3 d = ray.d;
+    vec3 inv = pre.inv_d;
+    float t0;
+    float t1;
+    if (!clip_to_box(o, d, inv, q.t, t0, t1)) {
+        return;
+    }
+    int side = int(g.grid_dims.x);
+    uint sp = 0u;
+    OctreePending cur = OctreePending(0u, ivec3(0), 0u, t0, t1);
+    float lo_t = NEG_INF;
+    uint prev_start = 0u;
+    uint prev_end = 0u;
+    bool ended = false;
+    for (uint visited = 0u; visited < g.grid_dims.w; visited++) {
+        uint node = cur.node;
+        if (cell_start[2u * node + 1u] == OCTREE_INTERIOR) {
+            work_nodes += 1u;
+            int half_side = side >> (cur.level + 1u);
+            vec3 tm = vec3(INF);
+            uint bits = 0u;
+            for (int i = 0; i < 3; i++) {
+                float plane = octree_plane(i, cur.org[i] + half_side);
+                bool upper;
+                if (d[i] == 0.0) {
+                    upper = o[i] >= plane;
+                } else {
+                    tm[i] = octree_plane_t(plane, o[i], inv[i]);
+                    upper = (tm[i] <= cur.t_in) == (d[i] > 0.0);
+                }
+                bits |= upper ? (1u << i) : 0u;
+            }
+            // The planes crossed inside the stretch, in order (the lower
+            // axis on a tie): three compare-and-swaps, no loop.
+            int a0 = 0;
+            int a1 = 1;
+            int a2 = 2;
+            uint m = 0u;
+            bvec3 crossed = bvec3(false);
+            for (int i = 0; i < 3; i++) {
+                crossed[i] = d[i] != 0.0 && tm[i] > cur.t_in && tm[i] < cur.t_out;
+            }
+            // Keys: the crossing distance, +INF for a plane not crossed
+            // (sorted last; ties keep axis order).
+            vec3 key = vec3(crossed.x ? tm.x : INF, crossed.y ? tm.y : INF,
+                            crossed.z ? tm.z : INF);
+            if (key[a1] < key[a0]) { int t = a0; a0 = a1; a1 = t; }
+            if (key[a2] < key[a1]) { int t = a1; a1 = a2; a2 = t; }
+            if (key[a1] < key[a0]) { int t = a0; a0 = a1; a1 = t; }
+            m = uint(crossed.x) + uint(crossed.y) + uint(crossed.z);
+            uint base = cell_start[2u * node];
+            OctreePending seq[4];
+            float t = cur.t_in;
+            ivec3 ord = ivec3(a0, a1, a2);
+            for (uint k = 0u; k < 3u; k++) {
+                if (k < m) {
+                    seq[k] = octree_child(cur, base, half_side, bits, t, tm[ord[k]]);
+                    bits ^= 1u << ord[k];
+                    t = tm[ord[k]];
+                }
+            }
+            seq[m] = octree_child(cur, base, half_side, bits, t, cur.t_out);
+            for (int k = 3; k >= 1; k--) {
+                if (uint(k) <= m) {
+                    octree_stack[sp] = seq[k];
+                    sp++;
+                }
+            }
+            cur = seq[0];
+            continue;
+        }
+        work_cells += 1u;
+        bool last = cur.t_out >= t1;
+        float hi_t = last ? INF : max(cur.t_out, lo_t);
+        q.lo = lo_t;
+        q.hi = hi_t;
+        uint start = cell_start[2u * node];
+        uint end = start + cell_start[2u * node + 1u];
+        uint j = prev_start;
+        uint k = start;
+        for (; k < end; k++) {
+            uint r = refs[k];
+            if (!q.shadow) {
+                while (j < prev_end && refs[j] < r) {
+                    j++;
+                }
+                if (j < prev_end && refs[j] == r) {
+                    continue;
+                }
+            }
+            if (query_prim(q, prims[r], r, ray, pre)) {
+                break;
+            }
+        }
+        if (!q.done && k != end) {
+            loops_cut += 1u;
+        }
+        if (end > start) {
+            prev_start = start;
+            prev_end = end;
+        }
+        if (q.done || q.t <= cur.t_out || last || sp == 0u) {
+            ended = true;
+            break;
+        }
+        lo_t = hi_t;
+        sp--;
+        cur = octree_stack[sp];
     }
     if (!ended) {
         loops_cut += 1u;

@@ -39,6 +39,12 @@ pub const OCTREE_INTERIOR: u32 = 0xFFFF_FFFF;
 /// Deepest level an octree may reach (the root at 0): its lattice has
 /// 2^OCTREE_MAX_LEVELS cells on each axis.
 pub const OCTREE_MAX_LEVELS: u32 = 16;
+/// Entries of the octree's stack walk (`--octree-walk stack`): an
+/// interior node pushes at most three children, one node per level.
+pub const OCTREE_STACK_SIZE: u32 = 3 * OCTREE_MAX_LEVELS + 1;
+/// `Globals::flags.z` under the octree: which walk (`--octree-walk`).
+pub const OCTREE_WALK_NEIGHBOUR: u32 = 0;
+pub const OCTREE_WALK_STACK: u32 = 1;
 /// Codes of a banded polygon's cells (`pack::polygon::cells`): every
 /// point outside, every point inside, or near an edge (test the edges).
 pub const CELL_OUT: u32 = 0;

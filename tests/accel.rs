@@ -20,6 +20,7 @@
 use glam::DVec3;
 use proptest::prelude::*;
 use std::path::PathBuf;
+use whitted::pack::octree::Walk;
 use whitted::pack::{self, Accel, Packed, Settings, Shadows};
 use whitted::scene::{Camera, Light, Material, Object, Scene, Shape};
 use whitted::trace::accel::{closest_hit, closest_hit_brute, transmittance, transmittance_brute};
@@ -258,15 +259,24 @@ proptest! {
         clustered: bool,
         max_leaf in 1u32..12,
         max_levels in 0u32..14,
+        stack: bool,
         rays in ray_strategy(),
     ) {
         let s = random_scene(seed, count, clustered);
-        let p = pack_octree(&s, max_leaf, max_levels);
+        let p = pack_octree(&s, max_leaf, max_levels, walk(stack));
         check_against_brute(&p, &rays)?;
     }
 }
 
-fn pack_octree(s: &Scene, max_leaf: u32, max_levels: u32) -> Packed {
+fn walk(stack: bool) -> Walk {
+    if stack {
+        Walk::Stack
+    } else {
+        Walk::Neighbour
+    }
+}
+
+fn pack_octree(s: &Scene, max_leaf: u32, max_levels: u32, walk: Walk) -> Packed {
     let p = pack::pack(
         s,
         &Settings {
@@ -274,6 +284,7 @@ fn pack_octree(s: &Scene, max_leaf: u32, max_levels: u32) -> Packed {
             octree: whitted::pack::octree::Params {
                 max_leaf,
                 max_levels,
+                walk,
             },
             ..Settings::default()
         },
@@ -297,11 +308,16 @@ proptest! {
         let s = random_scene(seed, count, clustered);
         let g = whitted::cpu::render(&pack_with(&s, Accel::Grid), &|_, _| {});
         prop_assert!(g.stats.eye_hit > 0);
-        for accel in [Accel::Bvh, Accel::Octree] {
-            let b = whitted::cpu::render(&pack_with(&s, accel), &|_, _| {});
+        let others = [
+            pack_with(&s, Accel::Bvh),
+            pack_with(&s, Accel::Octree),
+            pack_octree(&s, 4, 10, Walk::Stack),
+        ];
+        for p in &others {
+            let b = whitted::cpu::render(p, &|_, _| {});
             prop_assert_eq!(g.stats, b.stats);
             let differ = g.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();
-            prop_assert_eq!(differ, 0, "{:?}: {} of {} pixels differ", accel, differ, g.pixels.len());
+            prop_assert_eq!(differ, 0, "{:?} {:?}: {} of {} pixels differ", p.structure(), p.globals.flags[2], differ, g.pixels.len());
         }
     }
 }
@@ -536,8 +552,11 @@ fn axis_parallel_rays_equal_brute_force() {
     for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
         check_against_brute(&pack_with(&s, accel), &rays).unwrap();
     }
-    // A deep octree too: its lattice planes through the primitives' own.
-    check_against_brute(&pack_octree(&s, 1, 8), &rays).unwrap();
+    // A deep octree too, both walks: its lattice planes through the
+    // primitives' own.
+    for stack in [false, true] {
+        check_against_brute(&pack_octree(&s, 1, 8, walk(stack)), &rays).unwrap();
+    }
 }
 
 /// Rays from non-finite origins (an infinite or NaN component, as a
@@ -785,9 +804,14 @@ fn glass_in_many_leaves_counts_once_per_feeler() {
         });
     }
     s.objects = objects;
-    let p = pack_octree(&s, 2, 12);
+    for stack in [false, true] {
+        glass_feelers(&s, &pack_octree(&s, 2, 12, walk(stack)));
+    }
+}
+
+fn glass_feelers(s: &Scene, p: &Packed) {
     assert!(p.accel.leaves > 1000, "{} leaves", p.accel.leaves);
-    let view = SceneView::new(&p);
+    let view = SceneView::new(p);
     let e = s.camera.from.as_vec3();
     let eye = v3(e.x, e.y, e.z);
     let mut through_glass = 0;

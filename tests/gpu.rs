@@ -1759,11 +1759,14 @@ fn generated_scenes_match_on_every_structure() {
     ];
     for (name, scene) in &scenes {
         let mut grid_pixels = None;
-        for (accel, leaf, levels) in [
-            (Accel::Grid, 8, 12),
-            (Accel::Bvh, 8, 12),
-            (Accel::Octree, 8, 12),
-            (Accel::Octree, 1, 16),
+        use whitted::pack::octree::Walk;
+        for (accel, leaf, levels, walk) in [
+            (Accel::Grid, 8, 12, Walk::Neighbour),
+            (Accel::Bvh, 8, 12, Walk::Neighbour),
+            (Accel::Octree, 8, 12, Walk::Neighbour),
+            (Accel::Octree, 1, 16, Walk::Neighbour),
+            (Accel::Octree, 8, 12, Walk::Stack),
+            (Accel::Octree, 1, 16, Walk::Stack),
         ] {
             let mut settings = Settings {
                 accel,
@@ -1772,12 +1775,13 @@ fn generated_scenes_match_on_every_structure() {
             settings.octree = whitted::pack::octree::Params {
                 max_leaf: leaf,
                 max_levels: levels,
+                walk,
             };
             let p = whitted::pack::pack(scene, &settings).unwrap();
             let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
                 return;
             };
-            let label = format!("{name} {accel:?} leaf {leaf} levels {levels}");
+            let label = format!("{name} {accel:?} leaf {leaf} levels {levels} {walk:?}");
             assert_close(&label, &c, &g);
             match &grid_pixels {
                 None => grid_pixels = Some(c.pixels),

@@ -77,6 +77,12 @@ pub struct RenderOpts {
     /// cannot tell them apart [default: 12].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=16))]
     pub octree_levels: Option<u32>,
+    /// Octree: how rays walk it: leaf to leaf from exit points
+    /// (neighbour, the lecture's method), or top down with a stack, the
+    /// children in order along the ray (stack). Same images [default:
+    /// neighbour].
+    #[arg(long, value_enum)]
+    pub octree_walk: Option<crate::pack::octree::Walk>,
     /// How shadow feelers find their blockers: through the acceleration
     /// structure like every ray (plain), or through a light buffer per
     /// light, a direction cube whose cells list the primitives a feeler
@@ -119,6 +125,7 @@ impl RenderOpts {
             octree: crate::pack::octree::Params {
                 max_leaf: self.octree_leaf.unwrap_or(base.octree.max_leaf),
                 max_levels: self.octree_levels.unwrap_or(base.octree.max_levels),
+                walk: self.octree_walk.unwrap_or(base.octree.walk),
             },
         }
     }

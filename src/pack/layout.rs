@@ -41,8 +41,9 @@ pub struct Globals {
     /// x: min weight, y: surface offset (scene units), z, w: unused.
     pub params: [f32; 4],
     /// x: counting flags (`FLAG_*`), y: the acceleration structure the
-    /// tracers walk (`ACCEL_GRID`, `ACCEL_BVH`), z: interior nodes of the
-    /// BVH (0: none; `bvh` holds two entries per node), w: unused.
+    /// tracers walk (`ACCEL_GRID`, `ACCEL_BVH`, `ACCEL_OCTREE`), z: the
+    /// BVH's nodes (0: none), or under the octree its walk
+    /// (`OCTREE_WALK_*`), w: the light buffers' resolution (0: none).
     pub flags: [u32; 4],
 }
 

@@ -1160,7 +1160,11 @@ pub fn pack_with_progress(
                 Accel::Octree => ACCEL_OCTREE,
                 _ => ACCEL_GRID,
             },
-            tree.node_count() as u32,
+            match (structure, settings.octree.walk) {
+                (Accel::Octree, octree::Walk::Stack) => OCTREE_WALK_STACK,
+                (Accel::Octree, octree::Walk::Neighbour) => OCTREE_WALK_NEIGHBOUR,
+                _ => tree.node_count() as u32,
+            },
             lb.res,
         ],
     };

@@ -41,13 +41,27 @@ pub const DEFAULT_LEAF: u32 = 8;
 /// Default deepest level (`--octree-levels`).
 pub const DEFAULT_LEVELS: u32 = 12;
 
-/// How far the build subdivides.
+/// How the tracers walk the octree (`--octree-walk`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Walk {
+    /// Leaf to leaf: from where the ray leaves a leaf, the leaf across
+    /// that face (the lecture's method; `trace::octree::octree_traverse`).
+    #[default]
+    Neighbour,
+    /// Top down with a stack, the children a ray passes through in order
+    /// (`trace::octree::octree_traverse_stack`).
+    Stack,
+}
+
+/// How far the build subdivides, and how the tracers walk it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Params {
     /// A node listing at most this many primitives is a leaf.
     pub max_leaf: u32,
     /// The deepest level (the root at 0), at most `OCTREE_MAX_LEVELS`.
     pub max_levels: u32,
+    pub walk: Walk,
 }
 
 impl Default for Params {
@@ -55,6 +69,7 @@ impl Default for Params {
         Params {
             max_leaf: DEFAULT_LEAF,
             max_levels: DEFAULT_LEVELS,
+            walk: Walk::Neighbour,
         }
     }
 }
@@ -343,6 +358,7 @@ mod tests {
                 Params {
                     max_leaf,
                     max_levels: DEFAULT_LEVELS,
+                    ..Params::default()
                 },
                 &free,
             )
@@ -356,6 +372,7 @@ mod tests {
             Params {
                 max_leaf: 1,
                 max_levels: 2,
+                ..Params::default()
             },
             &free,
         )
@@ -385,6 +402,7 @@ mod tests {
             Params {
                 max_leaf: 1,
                 max_levels: 16,
+                ..Params::default()
             },
             &free,
         )

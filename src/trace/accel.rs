@@ -10,10 +10,10 @@ use super::grid::grid_traverse;
 use super::intersect::{intersect, Hit, RayPre};
 use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
-use super::octree::octree_traverse;
+use super::octree::{octree_traverse, octree_traverse_stack};
 use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
-use crate::constants::{ACCEL_BVH, ACCEL_OCTREE, SHADOW_CACHE_LIGHTS};
+use crate::constants::{ACCEL_BVH, ACCEL_OCTREE, OCTREE_WALK_STACK, SHADOW_CACHE_LIGHTS};
 
 /// Runs query `q`: the unbounded primitives, then the structure in use.
 #[inline(always)]
@@ -30,7 +30,11 @@ pub fn accel_traverse<F: Real>(
     if s.globals.flags[1] == ACCEL_BVH {
         bvh_traverse(s, ray, pre, q, work);
     } else if s.globals.flags[1] == ACCEL_OCTREE {
-        octree_traverse(s, ray, pre, q, work);
+        if s.globals.flags[2] == OCTREE_WALK_STACK {
+            octree_traverse_stack(s, ray, pre, q, work);
+        } else {
+            octree_traverse(s, ray, pre, q, work);
+        }
     } else {
         grid_traverse(s, ray, pre, q, work);
     }

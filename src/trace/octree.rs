@@ -30,7 +30,7 @@ use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
-use crate::constants::{OCTREE_INTERIOR, OCTREE_MAX_LEVELS};
+use crate::constants::{OCTREE_INTERIOR, OCTREE_MAX_LEVELS, OCTREE_STACK_SIZE};
 
 /// The leaf holding lattice cell `p`, found from the node at `level` on
 /// `path` (which must hold `p`) down: the leaf's level, with the nodes
@@ -127,7 +127,7 @@ pub fn octree_traverse<F: Real>(
     // the root (about a third of the descents on SPD rings).
     let mut path = [0u32; OCTREE_MAX_LEVELS as usize + 1];
     let mut level = 0usize;
-    // The previous leaf's list (offset, length).
+    // The list of the previous leaf that listed any (offset, length).
     let (mut prev_start, mut prev_count) = (0u32, 0u32);
     // Each step enters another leaf, so a walk takes at most one step per
     // leaf (the bound keeps a NaN ray finite).
@@ -179,7 +179,9 @@ pub fn octree_traverse<F: Real>(
                 return;
             }
         }
-        (prev_start, prev_count) = (start, count);
+        if count > 0 {
+            (prev_start, prev_count) = (start, count);
+        }
         if q.t <= t_exit || last {
             return;
         }
@@ -192,5 +194,160 @@ pub fn octree_traverse<F: Real>(
         p[axis] = across;
         level = octree_common_level(side as u32, prev, p).min(leaf_level);
         lo = hi;
+    }
+}
+
+/// One pending node of the stack walk: its node, lattice origin and level,
+/// and the stretch of the ray inside it.
+#[derive(Clone, Copy, Debug)]
+struct Pending<F> {
+    node: u32,
+    org: [i32; 3],
+    level: u32,
+    t_in: F,
+    t_out: F,
+}
+
+/// Walks the octree for query `q` as `octree_traverse` does, but top down
+/// with a stack (`--octree-walk stack`): at an interior node the ray's
+/// stretch in it is cut where it crosses the three mid-planes, which
+/// gives the (up to four) children it passes through in order along the
+/// ray (Revelles, Ureña and Lastra's parametric traversal: the child
+/// entered first, then one flipped bit per plane crossed); the first is
+/// walked, the others pushed. Leaves come in the same order as from the
+/// neighbour walk, with the same stretches, so both queries and the
+/// transparent blockers' rule work alike.
+#[inline(always)]
+pub fn octree_traverse_stack<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    q: &mut Query<F>,
+    work: &mut Work,
+) {
+    let g = s.globals;
+    if g.grid_min[3] == 0.0 {
+        return;
+    }
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
+    let Some((t0, t1)) = clip_to_box(s, &o, &d, &inv, q.t) else {
+        return;
+    };
+    let side = g.grid_dims[0] as i32;
+    let mut stack = [Pending {
+        node: 0,
+        org: [0; 3],
+        level: 0,
+        t_in: F::zero(),
+        t_out: F::zero(),
+    }; OCTREE_STACK_SIZE as usize];
+    let mut sp = 0usize;
+    let mut cur = Pending {
+        node: 0,
+        org: [0; 3],
+        level: 0,
+        t_in: t0,
+        t_out: t1,
+    };
+    let mut lo = F::neg_infinity();
+    let (mut prev_start, mut prev_count) = (0u32, 0u32);
+    // Each node is taken up once (the bound keeps a NaN ray finite).
+    for _ in 0..g.grid_dims[3] {
+        let node = cur.node as usize;
+        if s.cell_start[2 * node + 1] == OCTREE_INTERIOR {
+            work.nodes += 1;
+            let half = side >> (cur.level + 1);
+            // Where the ray crosses each mid-plane, and the half it is in
+            // where it enters the node (the far one of a plane crossed by
+            // then; for an axis it does not move along, its side).
+            let mut tm = [F::infinity(); 3];
+            let mut bits = 0usize;
+            for i in 0..3 {
+                let plane = F::of(g.grid_min[i])
+                    + F::of((cur.org[i] + half) as f32) * F::of(g.grid_cell[i]);
+                let upper = if d[i] == F::zero() {
+                    o[i] >= plane
+                } else {
+                    tm[i] = (plane - o[i]) * inv[i];
+                    (tm[i] <= cur.t_in) == (d[i] > F::zero())
+                };
+                bits |= (upper as usize) << i;
+            }
+            // The planes crossed inside the stretch, in order along the
+            // ray (the lower axis on a tie).
+            let mut order = [0usize; 3];
+            let mut m = 0;
+            for i in 0..3 {
+                if d[i] != F::zero() && tm[i] > cur.t_in && tm[i] < cur.t_out {
+                    let mut j = m;
+                    while j > 0 && tm[i] < tm[order[j - 1]] {
+                        order[j] = order[j - 1];
+                        j -= 1;
+                    }
+                    order[j] = i;
+                    m += 1;
+                }
+            }
+            // The children in order: child k from the k-th crossing (the
+            // entry for k = 0) to the next (the node's exit for the last).
+            let base = s.cell_start[2 * node];
+            let child = |bits: usize, t_in: F, t_out: F| Pending {
+                node: base + bits as u32,
+                org: [0, 1, 2].map(|a| cur.org[a] + half * ((bits >> a) & 1) as i32),
+                level: cur.level + 1,
+                t_in,
+                t_out,
+            };
+            let mut seq = [cur; 4];
+            let mut t = cur.t_in;
+            for k in 0..m {
+                seq[k] = child(bits, t, tm[order[k]]);
+                bits ^= 1 << order[k];
+                t = tm[order[k]];
+            }
+            seq[m] = child(bits, t, cur.t_out);
+            for k in (1..=m).rev() {
+                stack[sp] = seq[k];
+                sp += 1;
+            }
+            cur = seq[0];
+            continue;
+        }
+        work.cells += 1;
+        let last = cur.t_out >= t1;
+        let hi = if last {
+            F::infinity()
+        } else {
+            cur.t_out.max(lo)
+        };
+        q.lo = lo;
+        q.hi = hi;
+        let (start, count) = (s.cell_start[2 * node], s.cell_start[2 * node + 1]);
+        let (prev_end, mut j) = (prev_start + prev_count, prev_start);
+        for k in start..start + count {
+            let r = s.refs[k as usize];
+            if !q.shadow {
+                while j < prev_end && s.refs[j as usize] < r {
+                    j += 1;
+                }
+                if j < prev_end && s.refs[j as usize] == r {
+                    continue;
+                }
+            }
+            if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
+                return;
+            }
+        }
+        if count > 0 {
+            (prev_start, prev_count) = (start, count);
+        }
+        if q.t <= cur.t_out || last || sp == 0 {
+            return;
+        }
+        lo = hi;
+        sp -= 1;
+        cur = stack[sp];
     }
 }
