@@ -79,6 +79,62 @@ fn renders_png_with_stats() {
     }
     assert!(j["accel"]["build_seconds"].as_f64().unwrap() >= 0.0);
     assert!(work["intersection_tests"].as_u64().unwrap() >= 1);
+    // Per ray: the totals over every ray counted.
+    let rays = ["eye", "reflect", "refract", "shadow"]
+        .iter()
+        .map(|k| j["rays"][k].as_u64().unwrap())
+        .sum::<u64>() as f64;
+    let per = j["work_per_ray"]["intersection_tests"].as_f64().unwrap();
+    let total = work["intersection_tests"].as_u64().unwrap() as f64;
+    assert!(
+        (per * rays - total).abs() < 1e-6 * total,
+        "{per} × {rays} vs {total}"
+    );
+}
+
+/// `--accel octree` renders the grid's image, and `--stats` names the
+/// octree, its shape and the leaves and descents of its walk.
+#[test]
+fn the_octree_renders_the_grids_image_and_reports_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "s.toml", SCENE);
+    let mut images = Vec::new();
+    for (accel, walk) in [
+        ("grid", "neighbour"),
+        ("octree", "neighbour"),
+        ("octree", "stack"),
+    ] {
+        let out = dir.path().join(format!("{accel}-{walk}.png"));
+        let stats = dir.path().join(format!("{accel}-{walk}.json"));
+        Command::cargo_bin("whitted")
+            .unwrap()
+            .args([
+                "render",
+                "--backend",
+                "cpu",
+                "-q",
+                "--accel",
+                accel,
+                "--octree-walk",
+                walk,
+            ])
+            .arg(&scene)
+            .arg("-o")
+            .arg(&out)
+            .arg("--stats")
+            .arg(&stats)
+            .assert()
+            .success();
+        images.push(std::fs::read(&out).unwrap());
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        assert_eq!(j["accel"]["structure"], accel);
+        if accel == "octree" {
+            assert!(j["accel"]["leaves"].as_u64().unwrap() >= 1);
+            assert!(j["work"]["cells_visited"].as_u64().unwrap() >= 1);
+        }
+    }
+    assert!(images[0] == images[1] && images[0] == images[2]);
 }
 
 #[test]

@@ -122,6 +122,8 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     output::write_to(frame, &dest, a.encoding).map_err(user)?;
     let total = t_start.elapsed().as_secs_f64();
     if let Some(path) = &a.stats {
+        let rays = frame.stats.total().max(1) as f64;
+        let per_ray = |n: u64| n as f64 / rays;
         let json = serde_json::json!({
             "backend": r.used,
             "precision": if r.used == run::Used::Cpu { Some(a.precision) } else { None },
@@ -135,6 +137,13 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "intersection_tests": frame.work.tests,
                 "cells_visited": frame.work.cells,
                 "nodes_visited": frame.work.nodes,
+            },
+            // The same over every ray counted (eye, reflected, refracted,
+            // feelers): what one ray costs the structure.
+            "work_per_ray": {
+                "intersection_tests": per_ray(frame.work.tests),
+                "cells_visited": per_ray(frame.work.cells),
+                "nodes_visited": per_ray(frame.work.nodes),
             },
             "accel": packed.accel,
             "seconds": {
