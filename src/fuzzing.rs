@@ -598,8 +598,12 @@ pub struct RenderSpec {
     pub corners: bool,
     pub min_weight: u8,
     pub grid: Option<[u8; 3]>,
-    /// Without `grid`: the BVH when set, else `auto`'s choice.
-    pub bvh: bool,
+    /// Without `grid`, by its value modulo 4: `auto`'s choice, the BVH,
+    /// the octree (neighbour walk, deep and with leaves of one, so that
+    /// primitives share leaves), the octree's stack walk. One byte, as the
+    /// `bool` it replaced: the committed corpus reads the same (an odd
+    /// byte, the BVH then, may now be the stack walk).
+    pub accel: u8,
 }
 
 impl RenderSpec {
@@ -618,15 +622,24 @@ impl RenderSpec {
                 Sampling::Centers
             },
             grid: self.grid.map(|g| g.map(|n| n as u32 % 16 + 1)),
-            accel: match (self.grid, self.bvh) {
+            accel: match (self.grid, self.accel % 4) {
                 (Some(_), _) => Accel::Grid,
-                (None, true) => Accel::Bvh,
-                (None, false) => Accel::Auto,
+                (None, 0) => Accel::Auto,
+                (None, 1) => Accel::Bvh,
+                (None, _) => Accel::Octree,
             },
             budget: Budget::bytes(MEMORY_LIMIT),
             offset: None,
             shadows: crate::pack::Shadows::Plain,
-            octree: Default::default(),
+            octree: crate::pack::octree::Params {
+                max_leaf: 1,
+                max_levels: 16,
+                walk: if self.accel % 4 == 3 {
+                    crate::pack::octree::Walk::Stack
+                } else {
+                    crate::pack::octree::Walk::Neighbour
+                },
+            },
         }
     }
 }
@@ -868,7 +881,7 @@ mod tests {
                 corners: false,
                 min_weight: 4,
                 grid: None,
-                bvh: false,
+                accel: 0,
             },
         }
     }
@@ -942,12 +955,12 @@ mod tests {
             }
             o => panic!("{o:?}\n{text}"),
         };
-        // The same through an explicit grid and through the BVH: the
-        // same image, so the same mean.
-        for (grid_sides, bvh) in [(Some([3, 3, 3]), false), (None, true)] {
+        // The same through an explicit grid, the BVH and both octree
+        // walks: the same image, so the same mean.
+        for (grid_sides, accel) in [(Some([3, 3, 3]), 0), (None, 1), (None, 2), (None, 3)] {
             let mut o = s.clone();
             o.render.grid = grid_sides;
-            o.render.bvh = bvh;
+            o.render.accel = accel;
             assert_eq!(pack_spec(&o), Outcome::Rendered(grid.clone()), "{text}");
         }
     }
