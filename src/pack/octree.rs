@@ -31,6 +31,8 @@
 
 use super::grid::{grid_box, Bounds};
 use crate::constants::{OCTREE_INTERIOR, OCTREE_MAX_LEVELS};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Cost of visiting a node (finding the leaf, leaving it) against one
 /// intersection test, for the split rule.
@@ -148,7 +150,7 @@ struct Task {
 pub fn build(
     bounds: &[Bounds],
     params: Params,
-    max_refs: &dyn Fn(u64) -> u64,
+    max_refs: &(dyn Fn(u64) -> u64 + Sync),
 ) -> Result<Octree, Refusal> {
     if bounds.is_empty() {
         return Ok(Octree {
@@ -180,6 +182,20 @@ pub fn build(
             }
         })
         .collect();
+    let used = Used {
+        words: AtomicU64::new(2),
+        refs: AtomicU64::new(0),
+        max_refs,
+    };
+    let root = Task {
+        node: 0,
+        org: [0; 3],
+        size: side,
+        level: 0,
+        items: (0..bounds.len() as u32).collect(),
+    };
+    // The top levels, serially, down to nodes of fewer than
+    // `PARALLEL_MIN` primitives; then those subtrees in parallel.
     let mut t = Octree {
         lo,
         hi,
@@ -188,73 +204,177 @@ pub fn build(
         nodes: vec![0, 0],
         ..Octree::default()
     };
-    let mut stack = vec![Task {
-        node: 0,
-        org: [0; 3],
-        size: side,
-        level: 0,
-        items: (0..bounds.len() as u32).collect(),
-    }];
-    let over = |t: &Octree, extra: usize| {
-        let words = t.nodes.len() as u64;
-        let refs = (t.refs.len() + extra) as u64;
-        (refs > max_refs(words) || refs > u32::MAX as u64 || words > u32::MAX as u64)
-            .then_some(Refusal { words, refs })
-    };
-    while let Some(task) = stack.pop() {
-        let n = task.items.len();
-        let mut kids: Option<[Vec<u32>; 8]> = None;
-        if n > params.max_leaf as usize && task.size > 1 {
-            let h = task.size / 2;
-            let mut k: [Vec<u32>; 8] = Default::default();
-            for &i in &task.items {
-                let r = &ranges[i as usize];
-                // The halves the range overlaps on each axis: bit 0 the
-                // lower, bit 1 the upper.
-                let sides = [0, 1, 2].map(|a| {
-                    let mid = task.org[a] + h;
-                    (r.lo[a] < mid) as u32 | ((r.hi[a] >= mid) as u32) << 1
-                });
-                for (c, list) in k.iter_mut().enumerate() {
-                    if (0..3).all(|a| sides[a] >> ((c >> a) & 1) & 1 != 0) {
-                        list.push(i);
-                    }
+    let mut pending = vec![root];
+    let mut frontier = Vec::new();
+    while let Some(task) = pending.pop() {
+        let kids = if task.items.len() >= PARALLEL_MIN {
+            split(&ranges, params, &task)
+        } else {
+            None
+        };
+        let Some(k) = kids else {
+            frontier.push(task);
+            continue;
+        };
+        let base = t.nodes.len() / 2;
+        t.nodes[2 * task.node] = base as u32;
+        t.nodes[2 * task.node + 1] = OCTREE_INTERIOR;
+        t.nodes.extend_from_slice(&[0; 16]);
+        used.add(16, 0)?;
+        pending.extend(children(&task, base, k));
+    }
+    let subs: Vec<Result<Sub, Refusal>> = frontier
+        .par_iter_mut()
+        .map(|task| {
+            subtree(
+                &ranges,
+                params,
+                std::mem::take(&mut task.items),
+                task,
+                &used,
+            )
+        })
+        .collect();
+    for (task, sub) in frontier.iter().zip(subs) {
+        let sub = sub?;
+        // Local node i ≥ 1 becomes node `offset + i`; the root takes the
+        // frontier node's place.
+        let offset = (t.nodes.len() / 2 - 1) as u32;
+        let refs_at = t.refs.len() as u32;
+        let fix = |w: &[u32]| {
+            if w[1] == OCTREE_INTERIOR {
+                [w[0] + offset, OCTREE_INTERIOR]
+            } else {
+                [w[0] + refs_at, w[1]]
+            }
+        };
+        let root = fix(&sub.nodes[0..2]);
+        t.nodes[2 * task.node..2 * task.node + 2].copy_from_slice(&root);
+        for w in sub.nodes[2..].chunks_exact(2) {
+            t.nodes.extend_from_slice(&fix(w));
+        }
+        t.refs.extend_from_slice(&sub.refs);
+        t.leaves += sub.leaves;
+        t.depth = t.depth.max(sub.depth);
+        t.max_leaf = t.max_leaf.max(sub.max_leaf);
+    }
+    Ok(t)
+}
+
+/// Subtrees of at least this many primitives are split before the rest
+/// is built in parallel (rayon).
+pub const PARALLEL_MIN: usize = 4096;
+
+/// The words and references made so far, by every thread, against the
+/// budget.
+struct Used<'a> {
+    words: AtomicU64,
+    refs: AtomicU64,
+    max_refs: &'a (dyn Fn(u64) -> u64 + Sync),
+}
+
+impl Used<'_> {
+    /// Counts `words` more node words and `refs` more references; refused
+    /// once they pass the budget or 32-bit offsets.
+    fn add(&self, words: u64, refs: u64) -> Result<(), Refusal> {
+        let w = self.words.fetch_add(words, Ordering::Relaxed) + words;
+        let r = self.refs.fetch_add(refs, Ordering::Relaxed) + refs;
+        if r > (self.max_refs)(w) || r > u32::MAX as u64 || w > u32::MAX as u64 {
+            return Err(Refusal { words: w, refs: r });
+        }
+        Ok(())
+    }
+}
+
+/// The primitives of each child of `task`'s node, when the split rule
+/// (module docs) splits it.
+fn split(ranges: &[Range], params: Params, task: &Task) -> Option<[Vec<u32>; 8]> {
+    let n = task.items.len();
+    if n <= params.max_leaf as usize || task.size <= 1 {
+        return None;
+    }
+    let h = task.size / 2;
+    let mut k: [Vec<u32>; 8] = Default::default();
+    for &i in &task.items {
+        let r = &ranges[i as usize];
+        // The halves the range overlaps on each axis: from the lower (0)
+        // or the upper (1), to the lower or the upper.
+        let from = [0, 1, 2].map(|a| (r.lo[a] >= task.org[a] + h) as usize);
+        let to = [0, 1, 2].map(|a| (r.hi[a] >= task.org[a] + h) as usize);
+        for z in from[2]..=to[2] {
+            for y in from[1]..=to[1] {
+                for x in from[0]..=to[0] {
+                    k[x | y << 1 | z << 2].push(i);
                 }
             }
-            // The surface-area heuristic: a ray crossing the node crosses
-            // a child with the child's share of its surface, a quarter,
-            // so it tests Σ n_c / 4 primitives after a node visit
-            // instead of n.
-            let split = NODE_COST + k.iter().map(|l| l.len()).sum::<usize>() as f64 / 4.0;
-            if split < n as f64 {
-                kids = Some(k);
-            }
         }
-        match kids {
+    }
+    // The surface-area heuristic: a ray crossing the node crosses a child
+    // with the child's share of its surface, a quarter, so it tests
+    // Σ n_c / 4 primitives after a node visit instead of n.
+    let cost = NODE_COST + k.iter().map(|l| l.len()).sum::<usize>() as f64 / 4.0;
+    (cost < n as f64).then_some(k)
+}
+
+/// The tasks of the eight children of `task`'s node, whose first is node
+/// `base`, last to first (popped child 0 first).
+fn children(task: &Task, base: usize, k: [Vec<u32>; 8]) -> impl Iterator<Item = Task> + '_ {
+    let h = task.size / 2;
+    k.into_iter().enumerate().rev().map(move |(c, items)| Task {
+        node: base + c,
+        org: [0, 1, 2].map(|a| task.org[a] + h * ((c as u32 >> a) & 1)),
+        size: h,
+        level: task.level + 1,
+        items,
+    })
+}
+
+/// A subtree built on its own: its nodes (root first) with local indices
+/// and offsets into its own `refs`.
+struct Sub {
+    nodes: Vec<u32>,
+    refs: Vec<u32>,
+    leaves: u32,
+    depth: u32,
+    max_leaf: u32,
+}
+
+/// Builds the subtree of `root` (whose primitives are `items`)
+/// depth-first.
+fn subtree(
+    ranges: &[Range],
+    params: Params,
+    items: Vec<u32>,
+    root: &Task,
+    used: &Used,
+) -> Result<Sub, Refusal> {
+    let mut t = Sub {
+        nodes: vec![0, 0],
+        refs: Vec::new(),
+        leaves: 0,
+        depth: 0,
+        max_leaf: 0,
+    };
+    let mut stack = vec![Task {
+        node: 0,
+        org: root.org,
+        size: root.size,
+        level: root.level,
+        items,
+    }];
+    while let Some(task) = stack.pop() {
+        match split(ranges, params, &task) {
             Some(k) => {
                 let base = t.nodes.len() / 2;
                 t.nodes[2 * task.node] = base as u32;
                 t.nodes[2 * task.node + 1] = OCTREE_INTERIOR;
                 t.nodes.extend_from_slice(&[0; 16]);
-                if let Some(r) = over(&t, 0) {
-                    return Err(r);
-                }
-                let h = task.size / 2;
-                // Pushed last to first: built depth-first, child 0 first.
-                for (c, items) in k.into_iter().enumerate().rev() {
-                    stack.push(Task {
-                        node: base + c,
-                        org: [0, 1, 2].map(|a| task.org[a] + h * ((c as u32 >> a) & 1)),
-                        size: h,
-                        level: task.level + 1,
-                        items,
-                    });
-                }
+                used.add(16, 0)?;
+                stack.extend(children(&task, base, k));
             }
             None => {
-                if let Some(r) = over(&t, n) {
-                    return Err(r);
-                }
+                let n = task.items.len();
+                used.add(0, n as u64)?;
                 t.nodes[2 * task.node] = t.refs.len() as u32;
                 t.nodes[2 * task.node + 1] = n as u32;
                 t.refs.extend_from_slice(&task.items);
@@ -298,23 +418,10 @@ mod tests {
         (node, org, size)
     }
 
-    #[test]
-    fn every_leaf_a_primitive_overlaps_lists_it() {
-        // Random small cubes, a few large ones, a pile of equal ones.
-        let mut s = 12345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut b: Vec<Bounds> = (0..3000)
-            .map(|_| cube([rnd() * 100.0, rnd() * 100.0, rnd() * 10.0], rnd() * 0.5))
-            .collect();
-        b.extend((0..5).map(|_| cube([rnd() * 100.0, rnd() * 100.0, 5.0], 20.0)));
-        b.extend((0..40).map(|_| cube([50.0, 50.0, 5.0], 0.1)));
-        let t = build(&b, Params::default(), &free).unwrap();
-        assert!(t.leaves > 100, "{}", t.leaves);
+    /// Checks, for a sample of primitives, that the leaf holding its
+    /// centre lists it, that its list ascends, and that every primitive
+    /// it lists is near it; the number checked.
+    fn check_lists(t: &Octree, b: &[Bounds]) -> usize {
         let side = 1u32 << t.levels;
         // Walk a sample of lattice cells: each leaf lists exactly the
         // primitives whose cells meet it, ascending.
@@ -338,6 +445,62 @@ mod tests {
             }
             checked += 1;
         }
+        checked
+    }
+
+    #[test]
+    fn a_large_build_made_in_parallel_lists_what_a_leaf_overlaps() {
+        // Above PARALLEL_MIN: the top levels split serially, the rest in
+        // parallel and spliced together.
+        let mut s = 99u64;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let b: Vec<Bounds> = (0..40_000)
+            .map(|_| cube([rnd() * 100.0, rnd() * 100.0, rnd() * 100.0], rnd() * 0.8))
+            .collect();
+        let t = build(&b, Params::default(), &free).unwrap();
+        assert!(t.leaves > 4000, "{}", t.leaves);
+        assert!(check_lists(&t, &b) > 5000);
+        // Every node is reached once from the root, every reference
+        // from one leaf.
+        let mut seen = vec![false; t.node_count()];
+        let mut refs = 0usize;
+        let mut stack = vec![0usize];
+        while let Some(n) = stack.pop() {
+            assert!(!seen[n], "node {n} reached twice");
+            seen[n] = true;
+            if t.nodes[2 * n + 1] == OCTREE_INTERIOR {
+                stack.extend((0..8).map(|c| t.nodes[2 * n] as usize + c));
+            } else {
+                refs += t.nodes[2 * n + 1] as usize;
+            }
+        }
+        assert!(seen.iter().all(|&x| x), "unreachable nodes");
+        assert_eq!(refs, t.refs.len());
+    }
+
+    #[test]
+    fn every_leaf_a_primitive_overlaps_lists_it() {
+        // Random small cubes, a few large ones, a pile of equal ones.
+        let mut s = 12345u64;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut b: Vec<Bounds> = (0..3000)
+            .map(|_| cube([rnd() * 100.0, rnd() * 100.0, rnd() * 10.0], rnd() * 0.5))
+            .collect();
+        b.extend((0..5).map(|_| cube([rnd() * 100.0, rnd() * 100.0, 5.0], 20.0)));
+        b.extend((0..40).map(|_| cube([50.0, 50.0, 5.0], 0.1)));
+        let t = build(&b, Params::default(), &free).unwrap();
+        assert!(t.leaves > 100, "{}", t.leaves);
+        let checked = check_lists(&t, &b);
         assert!(checked > 400);
         // The pile of 40 equal cubes cannot be split: one leaf holds them
         // all, at a level above the deepest.
