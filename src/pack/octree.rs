@@ -431,7 +431,7 @@ mod tests {
         let mut checked = 0;
         for i in (0..b.len()).step_by(7) {
             let c = [0, 1, 2].map(|a| cell_of((b[i].lo[a] + b[i].hi[a]) / 2.0, a));
-            let (node, org, size) = leaf_of(&t, c);
+            let (node, org, size) = leaf_of(t, c);
             let (start, n) = (t.nodes[2 * node] as usize, t.nodes[2 * node + 1] as usize);
             let list = &t.refs[start..start + n];
             assert!(list.contains(&(i as u32)), "{i} not in its leaf");
