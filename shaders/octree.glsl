@@ -58,6 +58,43 @@ int octree_lattice_cell(float x, int axis, int lo, int hi) {
     return int(c);
 }
 
+// Runs query q over leaf node's primitives (Rust: octree_leaf_query):
+// lo..hi is the leaf's stretch of the ray, prev_start..prev_end the list
+// of the last leaf before it that listed any, whose primitives a
+// closest-hit query tested already; that becomes this leaf's list if it
+// has one.
+void octree_leaf_query(inout Query q, Ray ray, RayPre pre, uint node, float lo, float hi,
+                       inout uint prev_start, inout uint prev_end) {
+    q.lo = lo;
+    q.hi = hi;
+    uint start = cell_start[2u * node];
+    uint end = start + cell_start[2u * node + 1u];
+    uint j = prev_start;
+    uint j_end = prev_end;
+    if (end > start) {
+        prev_start = start;
+        prev_end = end;
+    }
+    uint k = start;
+    for (; k < end; k++) {
+        uint r = refs[k];
+        if (!q.shadow) {
+            while (j < j_end && refs[j] < r) {
+                j++;
+            }
+            if (j < j_end && refs[j] == r) {
+                continue;
+            }
+        }
+        if (query_prim(q, prims[r], r, ray, pre)) {
+            break;
+        }
+    }
+    if (!q.done && k != end) {
+        loops_cut += 1u;
+    }
+}
+
 // Walks the octree for query q: every primitive listed in the leaves the
 // ray crosses, in order along the ray, until the query is done, the ray
 // leaves the octree, or q.t lies inside the current leaf. The unbounded
@@ -117,35 +154,7 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
         int across = step_dir[axis] > 0 ? org[axis] + size : org[axis] - 1;
         bool last = t_exit >= t1 || across < 0 || across >= side;
         float hi_t = last ? INF : max(t_exit, lo_t);
-        q.lo = lo_t;
-        q.hi = hi_t;
-        uint start = cell_start[2u * node];
-        uint end = start + cell_start[2u * node + 1u];
-        uint j = prev_start;
-        uint k = start;
-        for (; k < end; k++) {
-            uint r = refs[k];
-            // Listed in the previous leaf too (both lists ascend): a
-            // closest-hit query tested it there.
-            if (!q.shadow) {
-                while (j < prev_end && refs[j] < r) {
-                    j++;
-                }
-                if (j < prev_end && refs[j] == r) {
-                    continue;
-                }
-            }
-            if (query_prim(q, prims[r], r, ray, pre)) {
-                break;
-            }
-        }
-        if (end > start) {
-            prev_start = start;
-            prev_end = end;
-        }
-        if (!q.done && k != end) {
-            loops_cut += 1u;
-        }
+        octree_leaf_query(q, ray, pre, node, lo_t, hi_t, prev_start, prev_end);
         if (q.done || q.t <= t_exit || last) {
             ended = true;
             break;
@@ -279,33 +288,7 @@ void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
         work_cells += 1u;
         bool last = cur.t_out >= t1;
         float hi_t = last ? INF : max(cur.t_out, lo_t);
-        q.lo = lo_t;
-        q.hi = hi_t;
-        uint start = cell_start[2u * node];
-        uint end = start + cell_start[2u * node + 1u];
-        uint j = prev_start;
-        uint k = start;
-        for (; k < end; k++) {
-            uint r = refs[k];
-            if (!q.shadow) {
-                while (j < prev_end && refs[j] < r) {
-                    j++;
-                }
-                if (j < prev_end && refs[j] == r) {
-                    continue;
-                }
-            }
-            if (query_prim(q, prims[r], r, ray, pre)) {
-                break;
-            }
-        }
-        if (!q.done && k != end) {
-            loops_cut += 1u;
-        }
-        if (end > start) {
-            prev_start = start;
-            prev_end = end;
-        }
+        octree_leaf_query(q, ray, pre, node, lo_t, hi_t, prev_start, prev_end);
         if (q.done || q.t <= cur.t_out || last || sp == 0u) {
             ended = true;
             break;

@@ -85,6 +85,47 @@ fn lattice_cell<F: Real>(s: &SceneView, x: F, axis: usize, lo: i32, hi: i32) -> 
     }
 }
 
+/// Runs query `q` over leaf `node`'s primitives, which both walks reach in
+/// order along the ray: `stretch` is the leaf's stretch of the ray
+/// (`Query::lo`, `hi`), `prev` the list (offset, length) of the last leaf
+/// before it that listed any, whose primitives a closest-hit query
+/// tested already (both lists ascend: one merge pass finds them); `prev`
+/// becomes this leaf's list if it has one. True when the query is done.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn octree_leaf_query<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    q: &mut Query<F>,
+    node: usize,
+    stretch: (F, F),
+    prev: &mut (u32, u32),
+    work: &mut Work,
+) -> bool {
+    (q.lo, q.hi) = stretch;
+    let (start, count) = (s.cell_start[2 * node], s.cell_start[2 * node + 1]);
+    let (mut j, prev_end) = (prev.0, prev.0 + prev.1);
+    if count > 0 {
+        *prev = (start, count);
+    }
+    for k in start..start + count {
+        let r = s.refs[k as usize];
+        if !q.shadow {
+            while j < prev_end && s.refs[j as usize] < r {
+                j += 1;
+            }
+            if j < prev_end && s.refs[j as usize] == r {
+                continue;
+            }
+        }
+        if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
+            return true;
+        }
+    }
+    false
+}
+
 /// Walks the octree for query `q`: every primitive listed in the leaves
 /// the ray crosses, in order along the ray, until the query is done, the
 /// ray leaves the octree, or `q.t` lies inside the current leaf. The
@@ -128,7 +169,7 @@ pub fn octree_traverse<F: Real>(
     let mut path = [0u32; OCTREE_MAX_LEVELS as usize + 1];
     let mut level = 0usize;
     // The list of the previous leaf that listed any (offset, length).
-    let (mut prev_start, mut prev_count) = (0u32, 0u32);
+    let mut prev = (0u32, 0u32);
     // Each step enters another leaf, so a walk takes at most one step per
     // leaf (the bound keeps a NaN ray finite).
     for _ in 0..g.grid_dims[3] {
@@ -159,30 +200,10 @@ pub fn octree_traverse<F: Real>(
         };
         let last = t_exit >= t1 || across < 0 || across >= side;
         let hi = if last { F::infinity() } else { t_exit.max(lo) };
-        q.lo = lo;
-        q.hi = hi;
-        let (start, count) = (s.cell_start[2 * node], s.cell_start[2 * node + 1]);
-        let (prev_end, mut j) = (prev_start + prev_count, prev_start);
-        for k in start..start + count {
-            let r = s.refs[k as usize];
-            // Listed in the previous leaf too (both lists ascend): a
-            // closest-hit query tested it there.
-            if !q.shadow {
-                while j < prev_end && s.refs[j as usize] < r {
-                    j += 1;
-                }
-                if j < prev_end && s.refs[j as usize] == r {
-                    continue;
-                }
-            }
-            if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
-                return;
-            }
-        }
-        if count > 0 {
-            (prev_start, prev_count) = (start, count);
-        }
-        if q.t <= t_exit || last {
+        if octree_leaf_query(s, ray, pre, q, node, (lo, hi), &mut prev, work)
+            || q.t <= t_exit
+            || last
+        {
             return;
         }
         for i in 0..3 {
@@ -252,7 +273,7 @@ pub fn octree_traverse_stack<F: Real>(
         t_out: t1,
     };
     let mut lo = F::neg_infinity();
-    let (mut prev_start, mut prev_count) = (0u32, 0u32);
+    let mut prev = (0u32, 0u32);
     // Each node is taken up once (the bound keeps a NaN ray finite).
     for _ in 0..g.grid_dims[3] {
         let node = cur.node as usize;
@@ -322,28 +343,11 @@ pub fn octree_traverse_stack<F: Real>(
         } else {
             cur.t_out.max(lo)
         };
-        q.lo = lo;
-        q.hi = hi;
-        let (start, count) = (s.cell_start[2 * node], s.cell_start[2 * node + 1]);
-        let (prev_end, mut j) = (prev_start + prev_count, prev_start);
-        for k in start..start + count {
-            let r = s.refs[k as usize];
-            if !q.shadow {
-                while j < prev_end && s.refs[j as usize] < r {
-                    j += 1;
-                }
-                if j < prev_end && s.refs[j as usize] == r {
-                    continue;
-                }
-            }
-            if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
-                return;
-            }
-        }
-        if count > 0 {
-            (prev_start, prev_count) = (start, count);
-        }
-        if q.t <= cur.t_out || last || sp == 0 {
+        if octree_leaf_query(s, ray, pre, q, node, (lo, hi), &mut prev, work)
+            || q.t <= cur.t_out
+            || last
+            || sp == 0
+        {
             return;
         }
         lo = hi;
