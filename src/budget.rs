@@ -282,6 +282,9 @@ pub enum What {
     Grid,
     /// The BVH: its build's working arrays and its nodes.
     Bvh,
+    /// The octree: its nodes (two words each, counted as cells) and the
+    /// references of its leaves.
+    Octree,
 }
 
 impl What {
@@ -293,6 +296,7 @@ impl What {
             What::Primitives => "the packed primitives need",
             What::Grid => "the grid needs",
             What::Bvh => "the BVH needs",
+            What::Octree => "the octree needs",
         }
     }
     /// The unit of the count ("for 2.4 G references").
@@ -303,6 +307,7 @@ impl What {
             What::Primitives => "primitives",
             What::Grid => "references",
             What::Bvh => "primitives",
+            What::Octree => "references",
         }
     }
 }
@@ -343,6 +348,9 @@ impl fmt::Display for BudgetError {
         if i.what == What::Grid {
             write!(f, "{} cells and ", fmt_count(self.need.cells))?;
         }
+        if i.what == What::Octree {
+            write!(f, "{} node words and ", fmt_count(self.need.cells))?;
+        }
         write!(f, "{} {}", fmt_count(i.count), i.what.unit())?;
         if fmt_bytes(i.bytes) != fmt_bytes(self.total) {
             write!(f, ", {} in all", fmt_bytes(self.total))?;
@@ -350,6 +358,7 @@ impl fmt::Display for BudgetError {
         let hint = match i.what {
             What::Image => ", or render a smaller image",
             What::Grid if self.need.explicit_grid => ", or choose a coarser --grid",
+            What::Octree => ", or a larger --octree-leaf or fewer --octree-levels",
             _ => "",
         };
         write!(
@@ -412,6 +421,9 @@ pub struct Need {
     /// The BVH is built over the `bounded` primitives instead of the grid
     /// (then `cells` and `refs` stay 0).
     pub bvh: bool,
+    /// The octree is built instead of the grid: `cells` counts its node
+    /// words, `refs` its leaves' references.
+    pub octree: bool,
 }
 
 impl Need {
@@ -517,7 +529,11 @@ impl Need {
                     .saturating_add(self.extra.saturating_mul(2 * EXTRA_BYTES)),
             },
             Item {
-                what: What::Grid,
+                what: if self.octree {
+                    What::Octree
+                } else {
+                    What::Grid
+                },
                 count: self.refs,
                 bytes: self
                     .cells
@@ -681,6 +697,28 @@ mod tests {
             msg,
             "the grid needs 18 GiB for 1.0 M cells and 2.4 G references (limit 1.0 GiB, \
              as asked; raise it with --memory-limit, or choose a coarser --grid)"
+        );
+    }
+
+    #[test]
+    fn an_octree_refusal_names_the_octree_and_its_knobs() {
+        let need = Need {
+            width: 100,
+            height: 100,
+            prims: 1000,
+            bounded: 1000,
+            cells: 1 << 20,
+            refs: 2_400_000_000,
+            octree: true,
+            ..Need::default()
+        };
+        let e = Budget::bytes(1 << 30).check(&need).unwrap_err();
+        assert_eq!(e.item.what, What::Octree);
+        assert_eq!(
+            e.to_string(),
+            "the octree needs 18 GiB for 1.0 M node words and 2.4 G references (limit \
+             1.0 GiB, as asked; raise it with --memory-limit, or a larger --octree-leaf or \
+             fewer --octree-levels)"
         );
     }
 

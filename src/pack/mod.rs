@@ -865,6 +865,7 @@ pub fn pack_with_progress(
         refs: 0,
         explicit_grid: settings.grid.is_some(),
         bvh: false,
+        octree: false,
     };
     if settings.grid.is_some() {
         match settings.accel {
@@ -955,6 +956,7 @@ pub fn pack_with_progress(
     let budget = &settings.budget;
     let (structure, auto) = choose_structure(settings, &bounds);
     need.bvh = structure == Accel::Bvh;
+    need.octree = structure == Accel::Octree;
     let n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
     let mut oct = octree::Octree::default();
