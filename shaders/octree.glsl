@@ -95,23 +95,28 @@ void octree_leaf_query(inout Query q, Ray ray, RayPre pre, uint node, float lo, 
     }
 }
 
+// The ray's stretch t0..t1 inside the octree's box within 0..tmax; false
+// when the octree is empty or the ray misses it (Rust: octree_ray).
+bool octree_clip(Ray ray, RayPre pre, float tmax, out float t0, out float t1) {
+    t0 = 0.0;
+    t1 = 0.0;
+    return g.grid_min.w != 0.0 && clip_to_box(ray.o, ray.d, pre.inv_d, tmax, t0, t1);
+}
+
 // Walks the octree for query q: every primitive listed in the leaves the
 // ray crosses, in order along the ray, until the query is done, the ray
 // leaves the octree, or q.t lies inside the current leaf. The unbounded
 // primitives are the caller's (accel.glsl). (Loops end with `break`: see
 // grid.glsl.)
 void octree_traverse(Ray ray, RayPre pre, inout Query q) {
-    if (g.grid_min.w == 0.0) {
+    float t0;
+    float t1;
+    if (!octree_clip(ray, pre, q.t, t0, t1)) {
         return;
     }
     vec3 o = ray.o;
     vec3 d = ray.d;
     vec3 inv = pre.inv_d;
-    float t0;
-    float t1;
-    if (!clip_to_box(o, d, inv, q.t, t0, t1)) {
-        return;
-    }
     int side = int(g.grid_dims.x);
     ivec3 step_dir = ivec3(d.x > 0.0 ? 1 : (d.x < 0.0 ? -1 : 0),
                            d.y > 0.0 ? 1 : (d.y < 0.0 ? -1 : 0),
@@ -210,17 +215,14 @@ OctreePending octree_child(OctreePending cur, uint base, int half_side, uint bit
 // node the children the ray passes through, in order, from where it
 // crosses the mid-planes; the first walked, the others pushed.
 void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
-    if (g.grid_min.w == 0.0) {
+    float t0;
+    float t1;
+    if (!octree_clip(ray, pre, q.t, t0, t1)) {
         return;
     }
     vec3 o = ray.o;
     vec3 d = ray.d;
     vec3 inv = pre.inv_d;
-    float t0;
-    float t1;
-    if (!clip_to_box(o, d, inv, q.t, t0, t1)) {
-        return;
-    }
     int side = int(g.grid_dims.x);
     uint sp = 0u;
     OctreePending cur = OctreePending(0u, ivec3(0), 0u, t0, t1);

@@ -126,6 +126,35 @@ fn octree_leaf_query<F: Real>(
     false
 }
 
+/// A ray's origin, direction and 1/direction per axis, and its stretch
+/// t0..t1 inside the octree's box.
+struct OctreeRay<F> {
+    o: [F; 3],
+    d: [F; 3],
+    inv: [F; 3],
+    t0: F,
+    t1: F,
+}
+
+/// The ray as both walks take it, clipped to the box within 0..`tmax`;
+/// `None` when the octree is empty or the ray misses it.
+#[inline(always)]
+fn octree_ray<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    tmax: F,
+) -> Option<OctreeRay<F>> {
+    if s.globals.grid_min[3] == 0.0 {
+        return None;
+    }
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
+    let (t0, t1) = clip_to_box(s, &o, &d, &inv, tmax)?;
+    Some(OctreeRay { o, d, inv, t0, t1 })
+}
+
 /// Walks the octree for query `q`: every primitive listed in the leaves
 /// the ray crosses, in order along the ray, until the query is done, the
 /// ray leaves the octree, or `q.t` lies inside the current leaf. The
@@ -139,13 +168,7 @@ pub fn octree_traverse<F: Real>(
     work: &mut Work,
 ) {
     let g = s.globals;
-    if g.grid_min[3] == 0.0 {
-        return;
-    }
-    let o = [ray.o.x, ray.o.y, ray.o.z];
-    let d = [ray.d.x, ray.d.y, ray.d.z];
-    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
-    let Some((t0, t1)) = clip_to_box(s, &o, &d, &inv, q.t) else {
+    let Some(OctreeRay { o, d, inv, t0, t1 }) = octree_ray(s, ray, pre, q.t) else {
         return;
     };
     let side = g.grid_dims[0] as i32;
@@ -247,13 +270,7 @@ pub fn octree_traverse_stack<F: Real>(
     work: &mut Work,
 ) {
     let g = s.globals;
-    if g.grid_min[3] == 0.0 {
-        return;
-    }
-    let o = [ray.o.x, ray.o.y, ray.o.z];
-    let d = [ray.d.x, ray.d.y, ray.d.z];
-    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
-    let Some((t0, t1)) = clip_to_box(s, &o, &d, &inv, q.t) else {
+    let Some(OctreeRay { o, d, inv, t0, t1 }) = octree_ray(s, ray, pre, q.t) else {
         return;
     };
     let side = g.grid_dims[0] as i32;
