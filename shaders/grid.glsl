@@ -33,12 +33,32 @@ struct Dda {
     vec3 inv;
 };
 
+// The plane `edge` cells from the box's lower corner on axis: a cell
+// boundary of the grid, or a lattice plane of the octree (Rust:
+// lattice_plane).
+float lattice_plane(int axis, int edge) {
+    PRECISE float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
+    return plane;
+}
+
+// The cell holding coordinate x on axis, kept within lo..hi (a NaN gives
+// lo; lo >= 0): on the positive values left after the clamp, int() is
+// floor (Rust: lattice_cell).
+int lattice_cell(float x, int axis, int lo, int hi) {
+    PRECISE float c = (x - g.grid_min[axis]) / g.grid_cell[axis];
+    if (isnan(c) || c <= float(lo)) {
+        return lo;
+    } else if (c >= float(hi)) {
+        return hi;
+    }
+    return int(c);
+}
+
 // Distance to the far boundary of cell dda.cell on axis, computed afresh
 // from the cell index (no error accumulates along the ray).
 float dda_boundary(Dda dda, int axis) {
     int edge = dda.cell[axis] + (dda.step[axis] > 0 ? 1 : 0);
-    PRECISE float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
-    PRECISE float t = (plane - dda.o[axis]) * dda.inv[axis];
+    PRECISE float t = (lattice_plane(axis, edge) - dda.o[axis]) * dda.inv[axis];
     return t;
 }
 
@@ -91,18 +111,7 @@ bool dda_setup(Ray ray, RayPre pre, float tmax, out Dda dda) {
     for (int i = 0; i < 3; i++) {
         int n = int(g.grid_dims[i]);
         PRECISE float p = o[i] + d[i] * t0;
-        PRECISE float c = (p - g.grid_min[i]) / g.grid_cell[i];
-        // floor, then clamp to 0..n − 1, without ever converting an
-        // out-of-range float: on the positive values left, int() is floor.
-        int ci;
-        if (isnan(c) || c <= 0.0) {
-            ci = 0;
-        } else if (c >= float(n - 1)) {
-            ci = n - 1;
-        } else {
-            ci = int(c);
-        }
-        dda.cell[i] = ci;
+        dda.cell[i] = lattice_cell(p, i, 0, n - 1);
         dda.step[i] = d[i] > 0.0 ? 1 : (d[i] < 0.0 ? -1 : 0);
         if (dda.step[i] != 0) {
             dda.next[i] = dda_boundary(dda, i);
@@ -151,8 +160,7 @@ float dda_jump_exit(Dda dda, int r, out int axis) {
             continue;
         }
         int edge = dda.step[i] > 0 ? dda.cell[i] + r + 1 : dda.cell[i] - r;
-        PRECISE float plane = g.grid_min[i] + float(edge) * g.grid_cell[i];
-        PRECISE float t = (plane - dda.o[i]) * dda.inv[i];
+        PRECISE float t = (lattice_plane(i, edge) - dda.o[i]) * dda.inv[i];
         if (t < best) {
             best = t;
             axis = i;

@@ -39,23 +39,19 @@ bool octree_leaf(ivec3 p, inout uint level, out int size) {
     return half_side == 0 || cell_start[2u * node + 1u] != OCTREE_INTERIOR;
 }
 
+// Where a ray crosses a lattice plane. (A function of plain values:
+// glslang's `precise` propagation, inlined into the stack walk, traced
+// every pending node's history and ran out of memory.)
+float octree_plane_t(float plane, float o, float inv) {
+    PRECISE float t = (plane - o) * inv;
+    return t;
+}
+
 // The deepest level whose node holding lattice cell a also holds b (a !=
 // b; Rust: octree_common_level): L - 1 - the highest differing bit.
 uint octree_common_level(uint side, ivec3 a, ivec3 b) {
     uint diff = uint((a.x ^ b.x) | (a.y ^ b.y) | (a.z ^ b.z));
     return uint(max(findMSB(side) - 1 - findMSB(diff), 0));
-}
-
-// The lattice cell holding coordinate x on axis, kept within lo..hi (a
-// NaN gives lo).
-int octree_lattice_cell(float x, int axis, int lo, int hi) {
-    PRECISE float c = (x - g.grid_min[axis]) / g.grid_cell[axis];
-    if (isnan(c) || c <= float(lo)) {
-        return lo;
-    } else if (c >= float(hi)) {
-        return hi;
-    }
-    return int(c);
 }
 
 // Runs query q over leaf node's primitives (Rust: octree_leaf_query):
@@ -124,7 +120,7 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
     ivec3 p;
     for (int i = 0; i < 3; i++) {
         PRECISE float x = o[i] + d[i] * t0;
-        p[i] = octree_lattice_cell(x, i, 0, side - 1);
+        p[i] = lattice_cell(x, i, 0, side - 1);
     }
     float lo_t = NEG_INF;
     octree_path[0] = 0u;
@@ -149,8 +145,7 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
                 continue;
             }
             int edge = step_dir[i] > 0 ? org[i] + size : org[i];
-            PRECISE float plane = g.grid_min[i] + float(edge) * g.grid_cell[i];
-            PRECISE float t = (plane - o[i]) * inv[i];
+            float t = octree_plane_t(lattice_plane(i, edge), o[i], inv[i]);
             if (t < t_exit) {
                 t_exit = t;
                 axis = i;
@@ -167,30 +162,17 @@ void octree_traverse(Ray ray, RayPre pre, inout Query q) {
         for (int i = 0; i < 3; i++) {
             if (i != axis && step_dir[i] != 0) {
                 PRECISE float x = o[i] + d[i] * t_exit;
-                p[i] = octree_lattice_cell(x, i, org[i], org[i] + size - 1);
+                p[i] = lattice_cell(x, i, org[i], org[i] + size - 1);
             }
         }
-        ivec3 prev = p;
+        ivec3 from = p;
         p[axis] = across;
-        level = min(octree_common_level(uint(side), prev, p), leaf_level);
+        level = min(octree_common_level(uint(side), from, p), leaf_level);
         lo_t = hi_t;
     }
     if (!ended) {
         loops_cut += 1u;
     }
-}
-
-// The lattice plane `edge` on axis, and where a ray crosses it. (Functions
-// of plain values: glslang's `precise` propagation, inlined into the
-// stack walk, traced every pending node's history and ran out of memory.)
-float octree_plane(int axis, int edge) {
-    PRECISE float plane = g.grid_min[axis] + float(edge) * g.grid_cell[axis];
-    return plane;
-}
-
-float octree_plane_t(float plane, float o, float inv) {
-    PRECISE float t = (plane - o) * inv;
-    return t;
 }
 
 // One pending node of the stack walk (Rust: Pending).
@@ -238,7 +220,7 @@ void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
             vec3 tm = vec3(INF);
             uint bits = 0u;
             for (int i = 0; i < 3; i++) {
-                float plane = octree_plane(i, cur.org[i] + half_side);
+                float plane = lattice_plane(i, cur.org[i] + half_side);
                 bool upper;
                 if (d[i] == 0.0) {
                     upper = o[i] >= plane;

@@ -959,7 +959,9 @@ pub fn pack_with_progress(
     need.octree = structure == Accel::Octree;
     let n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
-    let mut oct = octree::Octree::default();
+    // The octree's shape (leaves, depth, most in a leaf), when built.
+    let mut octree_shape = None;
+    let max_refs = |cells: u64| need.max_refs(budget, cells);
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
         let tree = bvh::build(&bounds, progress);
@@ -980,8 +982,7 @@ pub fn pack_with_progress(
     } else if structure == Accel::Octree {
         // The grid's order (the rank is the index); the nodes and lists
         // take the grid's buffers (`pack::octree`).
-        let max_refs = |words: u64| need.max_refs(budget, words);
-        oct = match octree::build(&bounds, settings.octree, &max_refs) {
+        let oct = match octree::build(&bounds, settings.octree, &max_refs) {
             Ok(o) => o,
             Err(r) => {
                 let over = Need {
@@ -998,6 +999,7 @@ pub fn pack_with_progress(
             }
         };
         prims.extend(b.bounded.iter().map(|(p, _)| *p));
+        octree_shape = Some((oct.leaves, oct.depth, oct.max_leaf));
         let side = 1u32 << oct.levels;
         let g = grid::Grid {
             lo: oct.lo,
@@ -1005,12 +1007,11 @@ pub fn pack_with_progress(
             dims: [side; 3],
             cell: oct.cell,
             ranges: Vec::new(),
-            cell_start: std::mem::take(&mut oct.nodes),
-            refs: std::mem::take(&mut oct.refs),
+            cell_start: oct.nodes,
+            refs: oct.refs,
         };
         (g, bvh::Bvh::default())
     } else {
-        let max_refs = |cells: u64| need.max_refs(budget, cells);
         let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
             Ok(g) => g,
             Err(r) => {
@@ -1073,13 +1074,13 @@ pub fn pack_with_progress(
         finite.diagonal().max(far)
     };
     let eps = (scale * settings.offset.unwrap_or(EPS_OFFSET_REL) as f64) as f32;
-    // Light buffers over the finite primitives in `prims` order.
-    // The grid's cells, or the octree's node words.
+    // The grid's cells, or the octree's node words (two per node).
     let cells_kept = if structure == Accel::Octree {
         g.cell_start.len() as u64
     } else {
         grid::cells_of(g.dims)
     };
+    // Light buffers over the finite primitives in `prims` order.
     let mut lb = lightbuf::LightBuf::default();
     let mut lb_seconds = 0.0;
     if settings.shadows == Shadows::LightBuffer && n_bounded > 0 && !lights.is_empty() {
@@ -1120,13 +1121,13 @@ pub fn pack_with_progress(
         Sampling::Centers if settings.spp > 1 => SAMPLING_JITTER,
         Sampling::Centers => SAMPLING_CENTERS,
     };
-    // At most 1023³ < 2³² (GRID_MAX_DIM).
-    // The octree's nodes (fewer than 2^31: two words each).
+    // The grid's cells, at most 1023³ < 2³² (GRID_MAX_DIM), or the
+    // octree's nodes (its build keeps their words within 32 bits).
     let ncells = if structure == Accel::Octree {
-        (g.cell_start.len() / 2) as u32
+        cells_kept / 2
     } else {
-        grid::cells_of(g.dims) as u32
-    };
+        cells_kept
+    } as u32;
     let globals = Globals {
         cam_right: v4(right * half_w, 0.0),
         cam_up: v4(up * half_h, 0.0),
@@ -1185,19 +1186,21 @@ pub fn pack_with_progress(
             seconds: build_seconds,
         }
     };
+    let (leaves, depth, max_leaf) =
+        octree_shape.unwrap_or((tree.leaves, tree.depth, tree.max_leaf));
     let accel = AccelInfo {
         structure,
         auto,
         build_seconds,
         bytes: if need.bvh { tree.bytes() } else { grid_bytes },
-        nodes: if structure == Accel::Octree {
+        nodes: if octree_shape.is_some() {
             ncells as usize
         } else {
             tree.node_count()
         },
-        leaves: (tree.leaves + oct.leaves) as usize,
-        depth: tree.depth.max(oct.depth),
-        max_leaf: tree.max_leaf.max(oct.max_leaf),
+        leaves: leaves as usize,
+        depth,
+        max_leaf,
     };
     let lightbuf = LightBufInfo {
         res: lb.res,

@@ -216,10 +216,7 @@ pub fn build(
             frontier.push(task);
             continue;
         };
-        let base = t.nodes.len() / 2;
-        t.nodes[2 * task.node] = base as u32;
-        t.nodes[2 * task.node + 1] = OCTREE_INTERIOR;
-        t.nodes.extend_from_slice(&[0; 16]);
+        let base = interior(&mut t.nodes, task.node);
         used.add(16, 0)?;
         pending.extend(children(&task, base, k));
     }
@@ -316,6 +313,16 @@ fn split(ranges: &[Range], params: Params, task: &Task) -> Option<[Vec<u32>; 8]>
     (cost < n as f64).then_some(k)
 }
 
+/// Makes `node` interior: its eight children (left to fill) appended to
+/// `nodes`; the first child's index.
+fn interior(nodes: &mut Vec<u32>, node: usize) -> usize {
+    let base = nodes.len() / 2;
+    nodes[2 * node] = base as u32;
+    nodes[2 * node + 1] = OCTREE_INTERIOR;
+    nodes.extend_from_slice(&[0; 16]);
+    base
+}
+
 /// The tasks of the eight children of `task`'s node, whose first is node
 /// `base`, last to first (popped child 0 first).
 fn children(task: &Task, base: usize, k: [Vec<u32>; 8]) -> impl Iterator<Item = Task> + '_ {
@@ -365,10 +372,7 @@ fn subtree(
     while let Some(task) = stack.pop() {
         match split(ranges, params, &task) {
             Some(k) => {
-                let base = t.nodes.len() / 2;
-                t.nodes[2 * task.node] = base as u32;
-                t.nodes[2 * task.node + 1] = OCTREE_INTERIOR;
-                t.nodes.extend_from_slice(&[0; 16]);
+                let base = interior(&mut t.nodes, task.node);
                 used.add(16, 0)?;
                 stack.extend(children(&task, base, k));
             }

@@ -39,14 +39,37 @@ pub struct Dda<F> {
     pub inv: [F; 3],
 }
 
+/// The plane `edge` cells from the box's lower corner on `axis`: a cell
+/// boundary of the grid, or a lattice plane of the octree (which shares
+/// the box and the cell size's place in `Globals`).
+#[inline(always)]
+pub fn lattice_plane<F: Real>(s: &SceneView, axis: usize, edge: i32) -> F {
+    let g = s.globals;
+    F::of(g.grid_min[axis]) + F::of(edge as f32) * F::of(g.grid_cell[axis])
+}
+
+/// The cell holding coordinate `x` on `axis`, kept within `lo..=hi` (a
+/// NaN gives `lo`; `lo` ≥ 0): floor, then the clamp, by truncation on the
+/// positive values left (no libm call without SSE4.1).
+#[inline(always)]
+pub fn lattice_cell<F: Real>(s: &SceneView, x: F, axis: usize, lo: i32, hi: i32) -> i32 {
+    let g = s.globals;
+    let c = (x - F::of(g.grid_min[axis])) / F::of(g.grid_cell[axis]);
+    if c.is_nan() || c <= F::of(lo as f32) {
+        lo
+    } else if c >= F::of(hi as f32) {
+        hi
+    } else {
+        c.trunc_i32()
+    }
+}
+
 /// Distance to the far boundary of cell `dda.cell` on `axis`, computed
 /// afresh from the cell index (no error accumulates along the ray).
 #[inline(always)]
 pub fn dda_boundary<F: Real>(s: &SceneView, dda: &Dda<F>, axis: usize) -> F {
-    let g = s.globals;
     let edge = dda.cell[axis] + if dda.step[axis] > 0 { 1 } else { 0 };
-    let plane = F::of(g.grid_min[axis]) + F::of(edge as f32) * F::of(g.grid_cell[axis]);
-    (plane - dda.o[axis]) * dda.inv[axis]
+    (lattice_plane::<F>(s, axis, edge) - dda.o[axis]) * dda.inv[axis]
 }
 
 /// The stretch t0..t1 of the segment 0..`tmax` of the ray (origin `o`,
@@ -109,17 +132,7 @@ pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
     };
     for i in 0..3 {
         let n = g.grid_dims[i] as i32;
-        let p = o[i] + d[i] * t0;
-        // floor, then clamp to 0..n − 1: on the positive values left after
-        // the clamp, truncation is floor (no libm call without SSE4.1).
-        let q = (p - F::of(g.grid_min[i])) / F::of(g.grid_cell[i]);
-        dda.cell[i] = if q.is_nan() || q <= F::zero() {
-            0
-        } else if q >= F::of((n - 1) as f32) {
-            n - 1
-        } else {
-            q.trunc_i32()
-        };
+        dda.cell[i] = lattice_cell(s, o[i] + d[i] * t0, i, 0, n - 1);
         dda.step[i] = if d[i] > F::zero() {
             1
         } else if d[i] < F::zero() {
@@ -169,7 +182,6 @@ pub fn cell_skip(s: &SceneView, ci: usize) -> u32 {
 /// current cell, and across which axis.
 #[inline(always)]
 pub fn dda_jump_exit<F: Real>(s: &SceneView, dda: &Dda<F>, r: i32) -> (F, usize) {
-    let g = s.globals;
     let mut best = F::infinity();
     let mut axis = 0;
     for i in 0..3 {
@@ -181,8 +193,7 @@ pub fn dda_jump_exit<F: Real>(s: &SceneView, dda: &Dda<F>, r: i32) -> (F, usize)
         } else {
             dda.cell[i] - r
         };
-        let plane = F::of(g.grid_min[i]) + F::of(edge as f32) * F::of(g.grid_cell[i]);
-        let t = (plane - dda.o[i]) * dda.inv[i];
+        let t = (lattice_plane::<F>(s, i, edge) - dda.o[i]) * dda.inv[i];
         if t < best {
             best = t;
             axis = i;

@@ -2,7 +2,7 @@
 //!
 //! The lecture's method: from the leaf holding the ray's current point,
 //! find where the ray leaves it, and the leaf on the other side of that
-//! face by descending from the root to the point just across it. The
+//! face by descending the tree to the point just across it. The
 //! point is a cell of the deepest level's lattice (`pack::octree`), so
 //! "just across" is exact: one lattice cell past the face on the axis the
 //! ray leaves by, and on the other axes the cell the exit point lies in,
@@ -25,7 +25,7 @@
 //! the last ended, the first at −∞, the last ends at +∞), so every hit
 //! lies in exactly one.
 
-use super::grid::clip_to_box;
+use super::grid::{clip_to_box, lattice_cell, lattice_plane};
 use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
@@ -67,22 +67,6 @@ pub fn octree_common_level(side: u32, a: [i32; 3], b: [i32; 3]) -> usize {
     let diff = ((a[0] ^ b[0]) | (a[1] ^ b[1]) | (a[2] ^ b[2])) as u32;
     // side = 2^L: L − 1 − (the highest differing bit).
     (diff.leading_zeros() as i32 - side.leading_zeros() as i32 - 1).max(0) as usize
-}
-
-/// The lattice cell holding coordinate `x` on `axis`, kept within
-/// `lo..=hi` (a NaN gives `lo`): floor, by truncation on the positive
-/// values left after the clamp.
-#[inline(always)]
-fn lattice_cell<F: Real>(s: &SceneView, x: F, axis: usize, lo: i32, hi: i32) -> i32 {
-    let g = s.globals;
-    let c = (x - F::of(g.grid_min[axis])) / F::of(g.grid_cell[axis]);
-    if c.is_nan() || c <= F::of(lo as f32) {
-        lo
-    } else if c >= F::of(hi as f32) {
-        hi
-    } else {
-        c.trunc_i32()
-    }
 }
 
 /// Runs query `q` over leaf `node`'s primitives, which both walks reach in
@@ -209,8 +193,7 @@ pub fn octree_traverse<F: Real>(
                 continue;
             }
             let edge = if step[i] > 0 { org[i] + size } else { org[i] };
-            let plane = F::of(g.grid_min[i]) + F::of(edge as f32) * F::of(g.grid_cell[i]);
-            let t = (plane - o[i]) * inv[i];
+            let t = (lattice_plane::<F>(s, i, edge) - o[i]) * inv[i];
             if t < t_exit {
                 t_exit = t;
                 axis = i;
@@ -234,9 +217,9 @@ pub fn octree_traverse<F: Real>(
                 p[i] = lattice_cell(s, o[i] + d[i] * t_exit, i, org[i], org[i] + size - 1);
             }
         }
-        let prev = p;
+        let from = p;
         p[axis] = across;
-        level = octree_common_level(side as u32, prev, p).min(leaf_level);
+        level = octree_common_level(side as u32, from, p).min(leaf_level);
         lo = hi;
     }
 }
@@ -303,8 +286,7 @@ pub fn octree_traverse_stack<F: Real>(
             let mut tm = [F::infinity(); 3];
             let mut bits = 0usize;
             for i in 0..3 {
-                let plane = F::of(g.grid_min[i])
-                    + F::of((cur.org[i] + half) as f32) * F::of(g.grid_cell[i]);
+                let plane: F = lattice_plane(s, i, cur.org[i] + half);
                 let upper = if d[i] == F::zero() {
                     o[i] >= plane
                 } else {
