@@ -1,7 +1,7 @@
 // The tracer's two queries over the whole scene: twin of
 // src/trace/accel.rs. Each tests the unbounded primitives (planes,
 // unclipped quadrics, giants) and then walks the structure the packed
-// scene carries (g.flags.y): the grid (grid.glsl), the BVH (bvh.glsl) or
+// scene carries (g.flags.y; STRUCTURE in layout.glsl): the grid (grid.glsl), the BVH (bvh.glsl) or
 // the octree (octree.glsl), one traversal each serving both queries
 // (query.glsl).
 #ifndef WHITTED_ACCEL_GLSL
@@ -18,10 +18,10 @@ void accel_traverse(Ray ray, RayPre pre, inout Query q) {
     if (q.done) {
         return;
     }
-    if (g.flags.y == ACCEL_BVH) {
+    if (uses_accel(ACCEL_BVH)) {
         bvh_traverse(ray, pre, q);
-    } else if (g.flags.y == ACCEL_OCTREE) {
-        if (g.flags.z == OCTREE_WALK_STACK) {
+    } else if (uses_accel(ACCEL_OCTREE)) {
+        if (uses_octree_walk(OCTREE_WALK_STACK)) {
             octree_traverse_stack(ray, pre, q);
         } else {
             octree_traverse(ray, pre, q);
@@ -62,7 +62,7 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     uint res = g.flags.w;
     uint cell = 0u;
     bool use_lb = false;
-    if (res > 0u && light < g.counts.z) {
+    if (uses_light_buffers() && res > 0u && light < g.counts.z) {
         PRECISE vec3 c = ray.o - lights[light].pos.xyz;
         use_lb = lightbuf_cell(res, light, c, cell);
     }

@@ -102,6 +102,32 @@ const bool HAS_TRANSMIT_HIGHLIGHT = (FEATURES & FEAT_TRANSMIT_HIGHLIGHT) != 0u;
 const bool HAS_FALLOFF = (FEATURES & FEAT_FALLOFF) != 0u;
 const bool HAS_SMOOTH = (FEATURES & FEAT_SMOOTH) != 0u;
 
+// The structure the scene walks, as specialization constant 3, so that
+// the walks not in use compile out: llvmpipe runs both sides of every
+// branch with lanes masked off, so a walk chosen at run time costs every
+// other walk's code on each query (docs/profiling.md). Bits 0-3: ACCEL_*;
+// bits 4-7: OCTREE_WALK_* under the octree; bit 8: light buffers. The
+// default (all bits) decides at run time from g.flags, for any scene; the
+// host passes structure_key(g.flags) (src/gpu/mod.rs), never a value that
+// differs from the scene's.
+layout(constant_id = 3) const uint STRUCTURE = 0xFFFFFFFFu;
+const bool STRUCTURE_ANY = STRUCTURE == 0xFFFFFFFFu;
+
+// The scene's acceleration structure is ACCEL_* accel.
+bool uses_accel(uint accel) {
+    return STRUCTURE_ANY ? g.flags.y == accel : (STRUCTURE & 15u) == accel;
+}
+
+// Under the octree: the walk is OCTREE_WALK_* walk.
+bool uses_octree_walk(uint walk) {
+    return STRUCTURE_ANY ? g.flags.z == walk : ((STRUCTURE >> 4) & 15u) == walk;
+}
+
+// The scene carries light buffers (g.flags.w > 0: their resolution).
+bool uses_light_buffers() {
+    return STRUCTURE_ANY ? g.flags.w > 0u : (STRUCTURE & 256u) != 0u;
+}
+
 // SceneView::has: the scene's own feature bits (read at run time, as the
 // CPU does). Where the Rust calls s.has(F), the shader writes
 // `HAS_F && has(F)`: identical results whatever FEATURES holds (as long as

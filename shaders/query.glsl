@@ -88,7 +88,7 @@ Query query_shadow(float dist, uint light) {
 // index in the grid's packing order (Rust: trace::query::rank). Under the
 // grid that is i; the BVH keeps it in cell_lo.
 uint prim_rank(Prim prim, uint i) {
-    return g.flags.y == ACCEL_BVH ? prim.cell_lo : i;
+    return uses_accel(ACCEL_BVH) ? prim.cell_lo : i;
 }
 
 // The least float above t >= 0 (+INF stays): Rust's f32::next_up there.

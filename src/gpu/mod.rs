@@ -503,8 +503,25 @@ type RenderPush = [u32; 8];
 type ProbePush = [u32; 4];
 
 /// Kernels by (name: `render`, `render_fast` or `probe`, specialization
-/// constants 0..=2): the exact and the fast render kernels never share one.
-type KernelCache = Mutex<HashMap<(&'static str, [u32; 3]), Arc<Kernel>>>;
+/// constants 0..=3): the exact and the fast render kernels never share one.
+type KernelCache = Mutex<HashMap<(&'static str, [u32; 4]), Arc<Kernel>>>;
+
+/// Specialization constant 3 of `render.comp` (`STRUCTURE`,
+/// shaders/layout.glsl) for a scene packed with `flags`
+/// (`Globals::flags`): bits 0-3 the structure (`ACCEL_*`), bits 4-7 the
+/// octree's walk, bit 8 light buffers. The walks the scene does not use
+/// then compile out, which llvmpipe would otherwise run, masked, on every
+/// query (docs/profiling.md).
+pub fn structure_key(flags: [u32; 4]) -> u32 {
+    let accel = flags[1] & 15;
+    let walk = if accel == crate::constants::ACCEL_OCTREE {
+        flags[2] & 15
+    } else {
+        0
+    };
+    let light_buffers = u32::from(flags[3] > 0);
+    accel | walk << 4 | light_buffers << 8
+}
 
 /// An open device with its kernels, reusable across renders and probes.
 pub struct Gpu {
@@ -609,7 +626,7 @@ impl Gpu {
         push_size: u32,
         spec: &[(u32, u32)],
     ) -> Result<Arc<Kernel>, GpuError> {
-        let mut key = [0u32; 3];
+        let mut key = [0u32; 4];
         for &(id, v) in spec {
             key[id as usize] = v;
         }
@@ -786,6 +803,7 @@ impl Gpu {
                 (0, opts.workgroup[0]),
                 (1, opts.workgroup[1]),
                 (2, g.trace[1]),
+                (3, structure_key(g.flags)),
             ],
         )?;
         lap(&mut phases, "pipeline");
@@ -1030,5 +1048,31 @@ mod tests {
         }
         .classify("dev");
         assert!(!other.is_device_fault() && !other.is_user_error());
+    }
+
+    #[test]
+    fn structure_keys_tell_every_walk_apart_and_ignore_the_bvh_node_count() {
+        use crate::constants::*;
+        // flags: [counting, accel, BVH nodes or octree walk, light-buffer resolution]
+        let cases = [
+            [0, ACCEL_GRID, 0, 0],
+            [0, ACCEL_BVH, 0, 0],
+            [0, ACCEL_OCTREE, OCTREE_WALK_NEIGHBOUR, 0],
+            [0, ACCEL_OCTREE, OCTREE_WALK_STACK, 0],
+            [0, ACCEL_GRID, 0, 16],
+            [0, ACCEL_BVH, 0, 32],
+            [0, ACCEL_OCTREE, OCTREE_WALK_STACK, 8],
+        ];
+        let keys: Vec<u32> = cases.iter().map(|&f| structure_key(f)).collect();
+        for i in 0..keys.len() {
+            for j in 0..i {
+                assert_ne!(keys[i], keys[j], "{:?} and {:?}", cases[i], cases[j]);
+            }
+            // Never the shader's "decide at run time" default.
+            assert_ne!(keys[i], u32::MAX);
+        }
+        // The BVH's node count (flags[2]) and the counting flags are not part of it.
+        assert_eq!(structure_key([1, ACCEL_BVH, 3938, 0]), keys[1]);
+        assert_eq!(structure_key([0, ACCEL_GRID, 0, 1]), keys[4]);
     }
 }
