@@ -56,11 +56,30 @@ void bvh_order2(inout float ta, inout uint ka, inout float tb, inout uint kb) {
     kb = swap ? k : kb;
 }
 
-// Walks the hierarchy for query q: every leaf whose box (and whose
-// ancestors' boxes) the segment 0..q.t enters, nearer children first,
-// until the query is done. The unbounded primitives are the caller's
-// (accel.glsl). (Loops end with `break`, never `return`: see grid.glsl.)
-void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
+// True when prim's cell range (the grid's, Prim.cell_lo/cell_hi) holds
+// coordinate coord on axis (axis 3: none): the grid's previous cell
+// listed it (grid.glsl, seen_before; Rust: trace::grid::seen_before).
+bool listed_at(Prim prim, int axis, int coord) {
+    if (axis > 2) {
+        return false;
+    }
+    uint shift = 10u * uint(axis);
+    int lo = int((prim.cell_lo >> shift) & 1023u);
+    int hi = int((prim.cell_hi >> shift) & 1023u);
+    return coord >= lo && coord <= hi;
+}
+
+// Walks the hierarchy whose root is node `root` for query q: every leaf
+// whose box (and whose ancestors' boxes) the segment 0..q.t enters,
+// nearer children first, until the query is done (q.done). A leaf's
+// entries are link..link + count: the primitives themselves, or, when
+// `nested` (a crowded grid cell's own BVH under the hybrid:
+// src/pack/hybrid.rs), indices into refs, skipping a primitive the
+// grid's previous cell (prev_axis, prev_coord) listed. Twin of
+// trace::bvh::bvh_walk. (Loops end with `break`, never `return`: see
+// grid.glsl.)
+void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int prev_axis,
+              int prev_coord) {
     uint nodes = g.flags.z;
     if (nodes == 0u) {
         return;
@@ -69,8 +88,8 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
     uint stack_slot[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     uint sp = 0u;
-    // The current child: the root (node 0) first.
-    uint link = 0u;
+    // The current child: the root first.
+    uint link = root;
     uint count = 0u;
     float t = 0.0;
     // One loop, one step per iteration: a node visit or one primitive of
@@ -96,7 +115,10 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
         }
         bool next = true;
         if (in_leaf) {
-            if (query_prim(q, prims[link], link, ray, pre)) {
+            uint i = nested ? refs[link] : link;
+            Prim prim = prims[i];
+            if (!(nested && listed_at(prim, prev_axis, prev_coord)) &&
+                query_prim(q, prim, i, ray, pre)) {
                 ended = true;
                 break;
             }
@@ -172,6 +194,11 @@ void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
     if (!ended) {
         loops_cut += 1u;
     }
+}
+
+// The unbounded primitives are the caller's (accel.glsl).
+void bvh_traverse(Ray ray, RayPre pre, inout Query q) {
+    bvh_walk(ray, pre, q, 0u, false, 3, -1);
 }
 
 #endif

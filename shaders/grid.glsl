@@ -12,6 +12,7 @@
 
 #include "precise.glsl"
 #include "query.glsl"
+#include "bvh.glsl"
 
 // Traversal state: the current cell and where the ray leaves it on each
 // axis.
@@ -214,13 +215,7 @@ bool dda_jump(inout Dda dda, int r, float t, int axis) {
 // previous cell differs only on the last step's axis, so checking that one
 // coordinate suffices.
 bool seen_before(Prim prim, Dda dda) {
-    if (dda.prev_axis > 2) {
-        return false;
-    }
-    uint shift = 10u * uint(dda.prev_axis);
-    int lo = int((prim.cell_lo >> shift) & 1023u);
-    int hi = int((prim.cell_hi >> shift) & 1023u);
-    return dda.prev_coord >= lo && dda.prev_coord <= hi;
+    return listed_at(prim, dda.prev_axis, dda.prev_coord);
 }
 
 uint cell_index(ivec3 c) {
@@ -269,6 +264,15 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
         uint k = start;
         for (; k < end; k++) {
             uint r = refs[k];
+            if (uses_accel(ACCEL_HYBRID) && (r & HYBRID_NODE) != 0u) {
+                // A crowded cell's own BVH (src/pack/hybrid.rs), its
+                // leaves' primitives skipped as the list's would be.
+                bvh_walk(ray, pre, q, r & ~HYBRID_NODE, true, dda.prev_axis, dda.prev_coord);
+                if (q.done) {
+                    break;
+                }
+                continue;
+            }
             Prim prim = prims[r];
             if (seen_before(prim, dda)) {
                 continue;

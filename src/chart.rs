@@ -207,6 +207,7 @@ pub fn values(knob: Knob, gpu: bool) -> Vec<(String, Config)> {
             with("grid".into(), &|c| c.accel = Accel::Grid),
             with("bvh".into(), &|c| c.accel = Accel::Bvh),
             with("octree".into(), &|c| c.accel = Accel::Octree),
+            with("hybrid".into(), &|c| c.accel = Accel::Hybrid),
         ],
         Knob::Shadows => vec![
             with("plain".into(), &|c| c.shadows = crate::pack::Shadows::Plain),
@@ -238,6 +239,7 @@ impl Plan {
             offset: None,
             shadows: c.shadows,
             octree: Default::default(),
+            hybrid_cell: crate::pack::hybrid::DEFAULT_CELL,
         }
     }
 }

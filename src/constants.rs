@@ -33,6 +33,11 @@ pub const BVH_WIDTH: u32 = 4;
 pub const ACCEL_GRID: u32 = 0;
 pub const ACCEL_BVH: u32 = 1;
 pub const ACCEL_OCTREE: u32 = 2;
+/// The grid whose crowded cells hold a small BVH each (`pack::hybrid`).
+pub const ACCEL_HYBRID: u32 = 3;
+/// Under the hybrid, a grid cell's list entry with this bit set is the
+/// root node (the low bits) of the cell's own BVH, not a primitive.
+pub const HYBRID_NODE: u32 = 0x8000_0000;
 /// Second word of an interior octree node (`pack::octree`); a leaf's
 /// second word is its primitive count, always less.
 pub const OCTREE_INTERIOR: u32 = 0xFFFF_FFFF;

@@ -373,6 +373,7 @@ fn small_settings() -> Settings {
         offset: None,
         shadows: crate::pack::Shadows::Plain,
         octree: Default::default(),
+        hybrid_cell: crate::pack::hybrid::DEFAULT_CELL,
     }
 }
 
@@ -598,11 +599,13 @@ pub struct RenderSpec {
     pub corners: bool,
     pub min_weight: u8,
     pub grid: Option<[u8; 3]>,
-    /// Without `grid`, by its value modulo 4: `auto`'s choice, the BVH,
-    /// the octree (neighbour walk, deep and with leaves of one, so that
-    /// primitives share leaves), the octree's stack walk. One byte, as the
-    /// `bool` it replaced: the committed corpus reads the same (an odd
-    /// byte, the BVH then, may now be the stack walk).
+    /// By its value modulo 5: `auto`'s choice, the BVH, the octree
+    /// (neighbour walk, deep and with leaves of one, so that primitives
+    /// share leaves), the octree's stack walk, the hybrid (every cell of
+    /// two or more primitives a BVH; with `grid` too, which otherwise
+    /// means the grid). One byte, as the `bool` it replaced: the committed
+    /// corpus reads the same (an odd byte, the BVH then, may now be
+    /// another structure).
     pub accel: u8,
 }
 
@@ -622,10 +625,12 @@ impl RenderSpec {
                 Sampling::Centers
             },
             grid: self.grid.map(|g| g.map(|n| n as u32 % 16 + 1)),
-            accel: match (self.grid, self.accel % 4) {
+            accel: match (self.grid, self.accel % 5) {
+                (Some(_), 4) => Accel::Hybrid,
                 (Some(_), _) => Accel::Grid,
                 (None, 0) => Accel::Auto,
                 (None, 1) => Accel::Bvh,
+                (None, 4) => Accel::Hybrid,
                 (None, _) => Accel::Octree,
             },
             budget: Budget::bytes(MEMORY_LIMIT),
@@ -634,12 +639,14 @@ impl RenderSpec {
             octree: crate::pack::octree::Params {
                 max_leaf: 1,
                 max_levels: 16,
-                walk: if self.accel % 4 == 3 {
+                walk: if self.accel % 5 == 3 {
                     crate::pack::octree::Walk::Stack
                 } else {
                     crate::pack::octree::Walk::Neighbour
                 },
             },
+            // Every crowded cell of two or more holds a BVH.
+            hybrid_cell: 1,
         }
     }
 }

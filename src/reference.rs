@@ -68,6 +68,7 @@ impl RefSettings {
             offset: None,
             shadows: crate::pack::Shadows::Plain,
             octree: Default::default(),
+            hybrid_cell: crate::pack::hybrid::DEFAULT_CELL,
         }
     }
 }

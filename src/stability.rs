@@ -751,6 +751,13 @@ fn structure(ctx: &Ctx) -> Result<Report> {
                     ..settings(161, 121)
                 },
             ),
+            (
+                "hybrid",
+                Settings {
+                    accel: Accel::Hybrid,
+                    ..settings(161, 121)
+                },
+            ),
         ] {
             let p = pack_it(&scene, &s)?;
             let (secs, f) = time_render(&p);
@@ -759,6 +766,9 @@ fn structure(ctx: &Ctx) -> Result<Report> {
             let size = if sname == "grid" {
                 let c = p.grid.cells;
                 format!("{}×{}×{}", c[0], c[1], c[2])
+            } else if sname == "hybrid" {
+                let c = p.grid.cells;
+                format!("{}×{}×{}, {} nodes", c[0], c[1], c[2], p.accel.nodes)
             } else {
                 format!("{} nodes", p.accel.nodes)
             };
@@ -775,8 +785,8 @@ fn structure(ctx: &Ctx) -> Result<Report> {
         id: "structure",
         title: STUDIES[3].1,
         setup: "Three scenes that corner a spatial structure, each rendered through a grid of \
-                one cell (brute force: every primitive tested), the grid, the BVH and the \
-                octree, 161×121: \
+                one cell (brute force: every primitive tested), the grid, the BVH, the \
+                octree and the hybrid, 161×121: \
                 27 spheres on a lattice with a 14³ grid whose walls contain the camera's axis \
                 (the centre row and column of rays run exactly along cell walls, and every \
                 ray is parallel to one axis plane); 1000 spheres within 0.01 beside a floor \
@@ -850,7 +860,7 @@ fn watertight(ctx: &Ctx) -> Result<Report> {
         "background pixels (cracks)",
     ]);
     let (mut cracks_all, mut views_all) = (0usize, 0usize);
-    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
         let (mut n, mut cracks, mut gcracks, mut pixels) = (0usize, 0usize, 0usize, 0usize);
         for elev in [50.0f64, 65.0, 80.0] {
             for k in 0..24 {
@@ -892,6 +902,7 @@ fn watertight(ctx: &Ctx) -> Result<Report> {
         let name = match accel {
             Accel::Grid => "grid",
             Accel::Bvh => "BVH",
+            Accel::Hybrid => "hybrid",
             _ => "octree",
         };
         t.row(vec![
@@ -915,14 +926,14 @@ fn watertight(ctx: &Ctx) -> Result<Report> {
         setup: "A rippled terrain of 2048 triangles with shared vertices, jittered off the \
                 lattice so that no edge is aligned with an axis, seen from 72 cameras (24 \
                 azimuths × elevations 50°, 65°, 80°) placed so that the terrain fills every \
-                view; 96×72 each, through the grid, the BVH and the octree. The background is magenta, \
+                view; 96×72 each, through the grid, the BVH, the octree and the hybrid. The background is magenta, \
                 so any background pixel is a ray that slipped between two triangles."
             .into(),
         table: t,
         findings: vec![format!(
             "{cracks_all} background pixels in all: {} views, each through the grid, \
-             the BVH and the octree, on every backend.",
-            views_all / 3
+             the BVH, the octree and the hybrid, on every backend.",
+            views_all / 4
         )],
         remedy: "Triangles are intersected with Woop, Benthin and Wald's watertight test: \
                  the ray's dominant axis becomes z, the vertices are sheared, and the edge \

@@ -266,6 +266,44 @@ proptest! {
         let p = pack_octree(&s, max_leaf, max_levels, walk(stack));
         check_against_brute(&p, &rays)?;
     }
+
+    /// The same for the hybrid, every crowded cell's BVH walked with the
+    /// grid's skip of what the previous cell listed (a cell of more than
+    /// `cell` primitives holds a BVH; 1: nearly every cell).
+    #[test]
+    fn hybrid_queries_equal_brute_force(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        cell in 1u32..12,
+        fine: bool,
+        rays in ray_strategy(),
+    ) {
+        let s = random_scene(seed, count, clustered);
+        // Its own coarse top grid, or the plain grid's resolution (cells
+        // crossed by many rays, primitives in several cells).
+        let grid = fine.then(|| {
+            let g = pack_with(&s, Accel::Grid).globals.grid_dims;
+            [g[0], g[1], g[2]]
+        });
+        let p = pack::pack(&s, &Settings { accel: Accel::Hybrid, hybrid_cell: cell, grid, ..Settings::default() }).unwrap();
+        prop_assert_eq!(p.structure(), Accel::Hybrid);
+        check_against_brute(&p, &rays)?;
+    }
+}
+
+fn pack_hybrid(s: &Scene, cell: u32) -> Packed {
+    let p = pack::pack(
+        s,
+        &Settings {
+            accel: Accel::Hybrid,
+            hybrid_cell: cell,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(p.structure(), Accel::Hybrid);
+    p
 }
 
 fn walk(stack: bool) -> Walk {
@@ -297,10 +335,11 @@ fn pack_octree(s: &Scene, max_leaf: u32, max_levels: u32, walk: Walk) -> Packed 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
-    /// Grid, BVH and octree render the same image, bit for bit, with the
-    /// same ray counts: the same closest hits, the same transmittances.
+    /// Grid, BVH, octree and hybrid render the same image, bit for bit,
+    /// with the same ray counts: the same closest hits, the same
+    /// transmittances.
     #[test]
-    fn grid_bvh_and_octree_render_the_same_image(
+    fn every_structure_renders_the_same_image(
         seed in 0u64..1000,
         count in 1usize..400,
         clustered: bool,
@@ -312,6 +351,8 @@ proptest! {
             pack_with(&s, Accel::Bvh),
             pack_with(&s, Accel::Octree),
             pack_octree(&s, 4, 10, Walk::Stack),
+            pack_with(&s, Accel::Hybrid),
+            pack_hybrid(&s, 1),
         ];
         for p in &others {
             let b = whitted::cpu::render(p, &|_, _| {});
@@ -352,10 +393,12 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
         let s = scene_with_copies(seed, 300, clustered);
         let (pg, pb) = (pack_with(&s, Accel::Grid), pack_with(&s, Accel::Bvh));
         let po = pack_with(&s, Accel::Octree);
-        let (sg, sb, so) = (
+        let ph = pack_hybrid(&s, 1);
+        let (sg, sb, so, sh) = (
             SceneView::new(&pg),
             SceneView::new(&pb),
             SceneView::new(&po),
+            SceneView::new(&ph),
         );
         let mut r = Rng(seed * 7919 + 1);
         let (mut hits, mut ties) = (0, 0);
@@ -372,11 +415,16 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
             let mut w = Work::default();
             let g = closest_hit(&sg, &ray, &pre, f32::INFINITY, &mut w);
             let b = closest_hit(&sb, &ray, &pre, f32::INFINITY, &mut w);
-            // The octree keeps the grid's order: the very same answer.
+            // The octree and the hybrid keep the grid's order: the very
+            // same answer.
             let key0 =
                 |h: Option<(whitted::trace::intersect::Hit<f32>, u32)>| h.map(|h| (h.0.t, h.1));
             assert_eq!(
                 key0(closest_hit(&so, &ray, &pre, f32::INFINITY, &mut w)),
+                key0(g)
+            );
+            assert_eq!(
+                key0(closest_hit(&sh, &ray, &pre, f32::INFINITY, &mut w)),
                 key0(g)
             );
             // Within one packing, the very primitive brute force finds.
@@ -446,7 +494,7 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
 /// a quarter here).
 #[test]
 fn the_shadow_cache_changes_no_answer() {
-    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
         for seed in 0..6 {
             let s = random_scene(seed, 400, false);
             let p = pack_with(&s, accel);
@@ -549,7 +597,7 @@ fn axis_parallel_rays_equal_brute_force() {
             rays.push((o, *d, 20.0));
         }
     }
-    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
         check_against_brute(&pack_with(&s, accel), &rays).unwrap();
     }
     // A deep octree too, both walks: its lattice planes through the
@@ -573,6 +621,7 @@ fn rays_from_non_finite_origins_end_and_meet_nothing() {
         pack_with(&s, Accel::Grid),
         pack_with(&s, Accel::Bvh),
         pack_with(&s, Accel::Octree),
+        pack_with(&s, Accel::Hybrid),
     ];
     for o in [
         v3(f32::INFINITY, 0.0, 0.0),
@@ -724,11 +773,11 @@ proptest! {
         seed in 0u64..1000,
         count in 1usize..300,
         clustered: bool,
-        which in 0usize..3,
+        which in 0usize..4,
         points in prop::collection::vec(prop::array::uniform3(-12.0f32..12.0), 24),
     ) {
         let s = scene_with_lights(seed, count, clustered);
-        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree][which];
+        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid][which];
         check_feelers(&pack_lb(&s, accel), &points)?;
     }
 }
@@ -743,10 +792,10 @@ proptest! {
         seed in 0u64..1000,
         count in 1usize..400,
         clustered: bool,
-        which in 0usize..3,
+        which in 0usize..4,
     ) {
         let s = scene_with_lights(seed, count, clustered);
-        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree][which];
+        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid][which];
         let plain = whitted::cpu::render(&pack_with(&s, accel), &|_, _| {});
         let lb = whitted::cpu::render(&pack_lb(&s, accel), &|_, _| {});
         prop_assert!(plain.stats.shadow > 0);

@@ -328,7 +328,7 @@ fn scene_files() -> Vec<PathBuf> {
 #[test]
 fn every_scene_matches_the_cpu_mirror() {
     for path in scene_files() {
-        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
             let p = common::load(
                 &path,
                 &Settings {
@@ -362,7 +362,7 @@ fn light_buffers_match_the_cpu_mirror() {
     let gears = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Gears, Some(2)).unwrap();
     packs.push(("gears".into(), common::small(64, 64), gears));
     for (name, base, scene) in packs {
-        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
             let settings = |shadows| Settings {
                 accel,
                 shadows,
@@ -454,7 +454,7 @@ fn the_fast_kernel_renders_close_to_the_mirror() {
         math: GpuMath::Fast,
         ..Default::default()
     };
-    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
         let p = common::load(
             &path,
             &Settings {
@@ -1540,7 +1540,7 @@ fn gpu_work_counters_match_the_cpu() {
     // 5 %, or 16 where a scene walks only a handful of cells.
     let close = |a: u64, b: u64| (a as f64 - b as f64).abs() <= (0.05 * a.max(b) as f64).max(16.0);
     for path in scene_files() {
-        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
             let p = common::load(
                 &path,
                 &Settings {
@@ -1589,7 +1589,7 @@ fn gpu_work_counters_match_the_cpu() {
     }
     glass +=
         "[[object]]\ntype = \"box\"\nmin = [-4, -4, -0.2]\nmax = [4, 4, 0]\nmaterial = \"g\"\n";
-    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
         let p = common::parse(
             &glass,
             &Settings {
@@ -1657,7 +1657,7 @@ fn ties_render_alike_on_both_twins_and_structures() {
         }
     }
     let mut frames = Vec::new();
-    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+    for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
         let p = common::parse(
             &text,
             &Settings {
@@ -1767,9 +1767,13 @@ fn generated_scenes_match_on_every_structure() {
             (Accel::Octree, 1, 16, Walk::Neighbour),
             (Accel::Octree, 8, 12, Walk::Stack),
             (Accel::Octree, 1, 16, Walk::Stack),
+            // The hybrid: `leaf` is its --hybrid-cell.
+            (Accel::Hybrid, 8, 12, Walk::Neighbour),
+            (Accel::Hybrid, 1, 12, Walk::Neighbour),
         ] {
             let mut settings = Settings {
                 accel,
+                hybrid_cell: leaf,
                 ..common::small(64, 48)
             };
             settings.octree = whitted::pack::octree::Params {

@@ -187,7 +187,7 @@ fn scenes() -> Vec<TestScene> {
         });
     }
     for s in ["showcase", "mesh", "quadric"] {
-        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
             out.push(TestScene {
                 name: format!("{s} {accel:?}"),
                 packed: common::load(

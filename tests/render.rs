@@ -610,7 +610,7 @@ fn light_buffers_render_every_scene_bit_for_bit() {
         ));
     }
     for (name, sc) in &scenes {
-        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree] {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
             let settings = |shadows| Settings {
                 width: Some(64),
                 height: Some(48),

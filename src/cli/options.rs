@@ -64,7 +64,8 @@ pub struct RenderOpts {
     pub grid: Option<[u32; 3]>,
     /// The acceleration structure: the uniform voxel grid, a
     /// bounding-volume hierarchy (surface-area heuristic), an octree
-    /// (subdivided where primitives crowd), or one chosen per scene by
+    /// (subdivided where primitives crowd), the hybrid (the grid, whose
+    /// crowded cells hold a small BVH each), or one chosen per scene by
     /// the rule in docs/method.md [default: auto; with --grid: grid].
     #[arg(long, value_enum)]
     pub accel: Option<Accel>,
@@ -83,6 +84,10 @@ pub struct RenderOpts {
     /// neighbour].
     #[arg(long, value_enum)]
     pub octree_walk: Option<crate::pack::octree::Walk>,
+    /// Hybrid: a grid cell listing more than this many primitives holds
+    /// a BVH over them [default: 8].
+    #[arg(long, value_name = "N")]
+    pub hybrid_cell: Option<u32>,
     /// How shadow feelers find their blockers: through the acceleration
     /// structure like every ray (plain), or through a light buffer per
     /// light, a direction cube whose cells list the primitives a feeler
@@ -127,6 +132,7 @@ impl RenderOpts {
                 max_levels: self.octree_levels.unwrap_or(base.octree.max_levels),
                 walk: self.octree_walk.unwrap_or(base.octree.walk),
             },
+            hybrid_cell: self.hybrid_cell.unwrap_or(base.hybrid_cell),
         }
     }
 

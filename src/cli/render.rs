@@ -181,6 +181,14 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "octree of {} nodes, {} leaves, depth {}, built in {:.3} s",
                 accel.nodes, accel.leaves, accel.depth, accel.build_seconds
             ),
+            crate::pack::Accel::Hybrid => format!(
+                "hybrid: grid {}x{}x{}, crowded cells' BVHs of {} nodes, built in {:.3} s",
+                packed.grid.cells[0],
+                packed.grid.cells[1],
+                packed.grid.cells[2],
+                accel.nodes,
+                accel.build_seconds
+            ),
             _ => format!(
                 "grid {}x{}x{}, {} refs, built in {:.3} s",
                 packed.grid.cells[0],

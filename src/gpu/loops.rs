@@ -226,7 +226,12 @@ impl LoopLoad {
             } else {
                 [0; 3]
             },
-            bvh_steps: if p.structure() == crate::pack::Accel::Bvh && g.flags[2] > 0 {
+            // The BVH's walk, or under the hybrid one crowded cell's BVH.
+            bvh_steps: if matches!(
+                p.structure(),
+                crate::pack::Accel::Bvh | crate::pack::Accel::Hybrid
+            ) && g.flags[2] > 0
+            {
                 crate::constants::BVH_WIDTH * (p.accel.depth + 1) + p.accel.max_leaf
             } else if octree && has_grid {
                 // The leaves a ray crosses (at most one per lattice step,

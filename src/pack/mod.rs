@@ -3,6 +3,7 @@
 
 pub mod bvh;
 pub mod grid;
+pub mod hybrid;
 pub mod layout;
 pub mod lightbuf;
 pub mod octree;
@@ -41,6 +42,9 @@ pub enum Accel {
     /// An octree, subdivided where the primitives crowd (`--octree-leaf`,
     /// `--octree-levels`), walked leaf to leaf from exit points.
     Octree,
+    /// The grid, whose cells listing more than `--hybrid-cell` primitives
+    /// hold a small BVH each (`pack::hybrid`).
+    Hybrid,
     /// Chosen per scene by the rule in docs/method.md ("Choosing the
     /// structure").
     #[default]
@@ -86,6 +90,9 @@ pub struct Settings {
     pub shadows: Shadows,
     /// `--octree-leaf`, `--octree-levels`: how far the octree subdivides.
     pub octree: octree::Params,
+    /// `--hybrid-cell`: under the hybrid, a cell listing more primitives
+    /// than this holds a BVH.
+    pub hybrid_cell: u32,
 }
 
 impl Default for Settings {
@@ -103,6 +110,7 @@ impl Default for Settings {
             offset: None,
             shadows: Shadows::Plain,
             octree: octree::Params::default(),
+            hybrid_cell: hybrid::DEFAULT_CELL,
         }
     }
 }
@@ -199,6 +207,7 @@ impl Preset {
                 offset: None,
                 shadows: Shadows::Plain,
                 octree: octree::Params::default(),
+                hybrid_cell: hybrid::DEFAULT_CELL,
             },
         }
     }
@@ -297,6 +306,7 @@ impl Packed {
         match self.globals.flags[1] {
             ACCEL_BVH => Accel::Bvh,
             ACCEL_OCTREE => Accel::Octree,
+            ACCEL_HYBRID => Accel::Hybrid,
             _ => Accel::Grid,
         }
     }
@@ -1012,7 +1022,21 @@ pub fn pack_with_progress(
         };
         (g, bvh::Bvh::default())
     } else {
-        let g = match grid::build(&bounds, settings.grid, &max_refs, progress) {
+        // The hybrid's top grid is coarser than the plain grid's: its
+        // cells are meant to crowd (about hybrid::PRIMS_PER_CELL
+        // primitives each, where the grid aims at GRID_DENSITY), their
+        // BVHs sorting them out.
+        let dims = match (structure, settings.grid) {
+            (Accel::Hybrid, None) => {
+                let all = bounds.iter().fold(Bounds::EMPTY, |a, b| a.union(b));
+                Some(grid::resolution(
+                    &all,
+                    bounds.len() / hybrid::PRIMS_PER_CELL,
+                ))
+            }
+            (_, dims) => dims,
+        };
+        let g = match grid::build(&bounds, dims, &max_refs, progress) {
             Ok(g) => g,
             Err(r) => {
                 let over = Need {
@@ -1034,7 +1058,34 @@ pub fn pack_with_progress(
             (p.cell_lo, p.cell_hi) = g.ranges[i];
             prims.push(p);
         }
-        (g, bvh::Bvh::default())
+        let mut g = g;
+        let mut tree = bvh::Bvh::default();
+        if structure == Accel::Hybrid {
+            // The crowded cells' BVHs, refused by their largest size
+            // before they are built (counted as references: 4 bytes each).
+            let (cells, refs) = hybrid::crowded(&g, settings.hybrid_cell);
+            let with = Need {
+                cells: grid::cells_of(g.dims),
+                refs: g.refs.len() as u64 + hybrid::bytes_at_most(cells, refs).div_ceil(4),
+                ..need
+            };
+            budget.check(&with)?;
+            let Some(nested) = hybrid::nest(&mut g, &bounds, settings.hybrid_cell) else {
+                return Err(PackError::TooMany {
+                    what: "hybrid BVH nodes",
+                    count: refs,
+                    max: HYBRID_NODE as u64,
+                });
+            };
+            tree = bvh::Bvh {
+                nodes: nested.nodes,
+                depth: nested.depth,
+                leaves: nested.leaves,
+                max_leaf: nested.max_leaf,
+                ..bvh::Bvh::default()
+            };
+        }
+        (g, tree)
     };
     drop(b.bounded);
     let build_seconds = t0.elapsed().as_secs_f64();
@@ -1138,7 +1189,7 @@ pub fn pack_with_progress(
             g.lo[0],
             g.lo[1],
             g.lo[2],
-            if n_bounded > 0 && matches!(structure, Accel::Grid | Accel::Octree) {
+            if n_bounded > 0 && matches!(structure, Accel::Grid | Accel::Octree | Accel::Hybrid) {
                 1.0
             } else {
                 0.0
@@ -1161,6 +1212,7 @@ pub fn pack_with_progress(
             match structure {
                 Accel::Bvh => ACCEL_BVH,
                 Accel::Octree => ACCEL_OCTREE,
+                Accel::Hybrid => ACCEL_HYBRID,
                 _ => ACCEL_GRID,
             },
             match (structure, settings.octree.walk) {
@@ -1172,7 +1224,7 @@ pub fn pack_with_progress(
         ],
     };
     let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4;
-    let grid_info = if structure != Accel::Grid {
+    let grid_info = if !matches!(structure, Accel::Grid | Accel::Hybrid) {
         GridInfo {
             duplicates,
             ..GridInfo::default()
@@ -1192,7 +1244,11 @@ pub fn pack_with_progress(
         structure,
         auto,
         build_seconds,
-        bytes: if need.bvh { tree.bytes() } else { grid_bytes },
+        bytes: if need.bvh {
+            tree.bytes()
+        } else {
+            grid_bytes + tree.bytes()
+        },
         nodes: if octree_shape.is_some() {
             ncells as usize
         } else {

@@ -74,9 +74,28 @@ pub fn bvh_traverse<F: Real>(
     q: &mut Query<F>,
     work: &mut Work,
 ) {
+    bvh_walk(s, ray, pre, q, work, 0, Some);
+}
+
+/// Walks the hierarchy whose root is node `root` (under the hybrid, a
+/// crowded grid cell's own: `pack::hybrid`) for query `q`. A leaf's
+/// entries are `link..link + count`; `prim(entry)` gives the primitive
+/// to test for one, or `None` to skip it (the BVH: the entry is the
+/// primitive; the hybrid's: `refs[entry]`, unless the grid's previous
+/// cell listed it). Returns true when the query is done.
+#[inline(always)]
+pub fn bvh_walk<F: Real>(
+    s: &SceneView,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    q: &mut Query<F>,
+    work: &mut Work,
+    root: u32,
+    prim: impl Fn(u32) -> Option<u32>,
+) -> bool {
     let nodes = s.globals.flags[2];
     if nodes == 0 {
-        return;
+        return false;
     }
     // A ray with a NaN, or from an infinite origin (∞ − ∞ is a NaN in the
     // slabs), is the only kind that can enter an empty lane. It has no
@@ -88,14 +107,14 @@ pub fn bvh_traverse<F: Real>(
     // checks the lanes instead: a GPU compiler may assume no NaN. 1/d may
     // be infinite.
     if (0..3).any(|i| !ray.o.get(i).is_finite() || pre.inv_d.get(i).is_nan()) {
-        return;
+        return false;
     }
     // The pushed children: node · BVH_WIDTH + lane, and entry distances.
     let mut stack_slot = [0u32; BVH_STACK_SIZE as usize];
     let mut stack_t = [F::zero(); BVH_STACK_SIZE as usize];
     let mut sp = 0usize;
-    // The current child: the root (node 0) first.
-    let mut link = 0u32;
+    // The current child: the root first.
+    let mut link = root;
     let mut count = 0u32;
     let mut t = F::zero();
     // Each child becomes the current one at most once, so a walk takes at
@@ -103,16 +122,18 @@ pub fn bvh_traverse<F: Real>(
     for _ in 0..W as u64 * nodes as u64 + 1 {
         if t <= q.t {
             if count > 0 {
-                let first = link as usize;
-                for (k, prim) in s.prims[first..first + count as usize].iter().enumerate() {
-                    if query_prim(s, q, prim, link + k as u32, ray, pre, work) {
-                        return;
+                for entry in link..link + count {
+                    let Some(i) = prim(entry) else {
+                        continue;
+                    };
+                    if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
+                        return true;
                     }
                 }
             } else {
                 work.nodes += 1;
                 let Some(node) = s.bvh.get(link as usize) else {
-                    return;
+                    return false;
                 };
                 let (te, mut mask) = bvh_entries(node, ray, pre, q.t);
                 if mask.is_power_of_two() {
@@ -159,7 +180,7 @@ pub fn bvh_traverse<F: Real>(
             }
         }
         if sp == 0 {
-            return;
+            return false;
         }
         sp -= 1;
         let slot = stack_slot[sp] as usize;
@@ -168,4 +189,5 @@ pub fn bvh_traverse<F: Real>(
         count = n.count[slot % W];
         t = stack_t[sp];
     }
+    false
 }

@@ -11,10 +11,12 @@
 //! ray), so a primitive whose cell range holds the previous cell was
 //! already tested there and is skipped.
 
+use super::bvh::bvh_walk;
 use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
+use crate::constants::{ACCEL_HYBRID, HYBRID_NODE};
 use crate::pack::layout::Prim;
 
 /// Traversal state: the current cell and where the ray leaves it on each
@@ -317,6 +319,18 @@ pub fn grid_traverse<F: Real>(
         }
         let (t_exit, axis) = dda_exit(&dda);
         for &r in &s.refs[start..end] {
+            if r & HYBRID_NODE != 0 && s.globals.flags[1] == ACCEL_HYBRID {
+                // A crowded cell's own BVH (`pack::hybrid`), its leaves'
+                // primitives skipped as the list's would be.
+                let seen = |e: u32| {
+                    let i = s.refs[e as usize];
+                    (!seen_before(&s.prims[i as usize], &dda)).then_some(i)
+                };
+                if bvh_walk(s, ray, pre, q, work, r & !HYBRID_NODE, seen) {
+                    return;
+                }
+                continue;
+            }
             let prim = &s.prims[r as usize];
             if seen_before(prim, &dda) {
                 continue;
