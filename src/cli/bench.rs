@@ -54,7 +54,7 @@ pub struct BenchArgs {
     /// Acceleration structures to time (comma-separated): every backend
     /// once per structure, labelled e.g. cpu/bvh; default: `auto`'s choice
     /// only (docs/method.md, "Choosing the structure").
-    #[arg(long, value_delimiter = ',', value_parser = ["grid", "bvh", "octree", "auto"])]
+    #[arg(long, value_delimiter = ',', value_parser = ["grid", "bvh", "octree", "hybrid", "auto"])]
     pub accel: Vec<String>,
     /// Shadow methods to time (comma-separated, e.g. plain,lightbuffer):
     /// every backend (and structure) once per method, labelled e.g.
