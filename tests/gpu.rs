@@ -1430,6 +1430,54 @@ fn cli_pipeline_cache_env() {
     }
 }
 
+/// `WHITTED_RENDER_SPV`: a kernel from a file renders (here the built-in
+/// kernel's own bytes: the same image), and a file that is not SPIR-V is
+/// a setting error naming the variable and the file, exit 2, no image.
+#[test]
+fn cli_render_spv_variant() {
+    let Some(_g) = common::gpu() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let spv = dir.path().join("variant.spv");
+    std::fs::write(&spv, whitted::gpu::shaders::RENDER).unwrap();
+    let not_spv = dir.path().join("not.spv");
+    std::fs::write(&not_spv, b"#version 460\nvoid main() {}\n").unwrap();
+    let render = |env: Option<&std::path::Path>, png: &std::path::Path| {
+        let mut c = whitted();
+        if let Some(e) = env {
+            c.env("WHITTED_RENDER_SPV", e);
+        }
+        c.args([
+            "render",
+            "scenes/mesh.toml",
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--backend",
+            "gpu",
+            "-o",
+        ])
+        .arg(png)
+        .output()
+        .unwrap()
+    };
+    let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
+    let o = render(None, &a);
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    let o = render(Some(&spv), &b);
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    let c = dir.path().join("c.png");
+    let o = render(Some(&not_spv), &c);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
+    let err = stderr_of(&o);
+    assert!(
+        err.contains("WHITTED_RENDER_SPV") && err.contains("not a SPIR-V module"),
+        "{err}"
+    );
+    assert!(!c.exists());
+}
+
 /// `whitted profile`: every combination measured (the refused one with its
 /// reason), the best marked once, the phases printed, and `--save` makes
 /// `render` use the best shape unless a shape is given.

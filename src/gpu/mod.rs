@@ -48,7 +48,7 @@ pub enum GpuError {
     #[error("{0}")]
     Limits(String),
     /// A setting from the environment is malformed (WHITTED_GPU_FAULT,
-    /// WHITTED_FENCE_TIMEOUT, WHITTED_PIPELINE_CACHE).
+    /// WHITTED_FENCE_TIMEOUT, WHITTED_PIPELINE_CACHE, WHITTED_RENDER_SPV).
     #[error("{0}")]
     Setting(String),
     #[error("shader: {0}")]
@@ -352,6 +352,30 @@ impl GpuMath {
     }
 }
 
+/// `WHITTED_RENDER_SPV=FILE`: a SPIR-V module to render with instead of
+/// the built-in kernel (either `--gpu-math`), for trying a variant of
+/// the shader without rebuilding (docs/profiling.md, "Trying a kernel
+/// variant"): a copy of `shaders/` edited and compiled with
+/// glslangValidator, with the same bindings, push and specialization
+/// constants. Unset or empty: None. An unreadable file or one that is
+/// not SPIR-V is a setting error (exit 2).
+pub fn render_variant() -> Result<Option<Vec<u8>>, GpuError> {
+    const VAR: &str = "WHITTED_RENDER_SPV";
+    let Some(path) = std::env::var_os(VAR).filter(|v| !v.is_empty()) else {
+        return Ok(None);
+    };
+    let shown = std::path::Path::new(&path).display().to_string();
+    let bytes = std::fs::read(&path)
+        .map_err(|e| GpuError::Setting(format!("{VAR}={shown}: cannot read it: {e}")))?;
+    if bytes.len() < 20 || bytes.len() % 4 != 0 || bytes[..4] != 0x0723_0203u32.to_le_bytes() {
+        return Err(GpuError::Setting(format!(
+            "{VAR}={shown}: not a SPIR-V module (little-endian, starting with 0x07230203)"
+        )));
+    }
+    log::info!("rendering with the kernel in {shown} ({VAR})");
+    Ok(Some(bytes))
+}
+
 /// How to run on the GPU. `device`, `real_gpu_only`, `sync_validation`,
 /// `fault`, `fence_timeout` and `pipeline_cache` are read when the device
 /// is opened (`Gpu::new`); `tile`, `workgroup`, `staging` and `math` by
@@ -502,7 +526,7 @@ type RenderPush = [u32; 8];
 /// probe.comp's push constants: mode, item count, two unused words.
 type ProbePush = [u32; 4];
 
-/// Kernels by (name: `render`, `render_fast` or `probe`, specialization
+/// Kernels by (name: `render`, `render_fast`, `render_variant` or `probe`, specialization
 /// constants 0..=3): the exact and the fast render kernels never share one.
 type KernelCache = Mutex<HashMap<(&'static str, [u32; 4]), Arc<Kernel>>>;
 
@@ -766,6 +790,10 @@ impl Gpu {
         opts: &GpuOptions,
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
+        if let Some(variant) = render_variant()? {
+            return self
+                .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
+        }
         let (name, spirv) = opts.math.render_kernel();
         self.guarded(|| self.render_with(spirv, name, packed, opts, progress))
     }
