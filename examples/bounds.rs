@@ -95,18 +95,10 @@ fn main() {
         .position(|a| a == "--step")
         .and_then(|i| args.get(i + 1))
         .map_or(4, |s| s.parse().expect("--step N"));
-    let mut scenes: Vec<(String, whitted::scene::Scene)> = [
-        SpdScene::Balls,
-        SpdScene::Gears,
-        SpdScene::Mount,
-        SpdScene::Rings,
-        SpdScene::Teapot,
-        SpdScene::Tetra,
-        SpdScene::Tree,
-    ]
-    .into_iter()
-    .map(|k| (format!("{k:?}").to_lowercase(), generate(k, None).unwrap()))
-    .collect();
+    let mut scenes: Vec<(String, whitted::scene::Scene)> = SpdScene::ALL
+        .into_iter()
+        .map(|k| (k.name().to_string(), generate(k, None).unwrap()))
+        .collect();
     scenes.push(("sphereflake 4".into(), whitted::gen::sphereflake(4)));
     println!("| scene | rays | box: children entered / ray | sphere | box: primitive tests / ray | sphere |");
     println!("|---|---:|---:|---:|---:|---:|");
