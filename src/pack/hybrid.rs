@@ -32,20 +32,18 @@ pub const DEFAULT_CELL: u32 = super::bvh::MAX_LEAF as u32;
 /// clustered scenes and the farther from the grid on the even one.
 pub const PRIMS_PER_CELL: usize = 128;
 
-/// What nesting adds: the BVHs' nodes, their shape.
+/// What nesting adds.
 #[derive(Clone, Debug, Default)]
 pub struct Nested {
-    /// Every crowded cell's BVH, depth-first each, one after another.
-    pub nodes: Vec<BvhNode>,
+    /// Every crowded cell's BVH, depth-first each, one after another
+    /// (`nodes`), and their shape together: the deepest node of any
+    /// (`depth`, a root: 0), their leaves, the most primitives in one.
+    /// No `order`: the leaves list their primitives through `refs`.
+    pub tree: bvh::Bvh,
     /// Cells that hold a BVH.
     pub cells: u64,
     /// Their primitives (references), now in the BVHs' leaves.
     pub refs: u64,
-    /// Deepest node of any of them (a root: 0).
-    pub depth: u32,
-    /// Leaves, and the most primitives in one.
-    pub leaves: u32,
-    pub max_leaf: u32,
 }
 
 /// The cells of `g` listing more than `threshold` primitives, and how
@@ -74,9 +72,10 @@ pub fn bytes_at_most(cells: u64, refs: u64) -> u64 {
 
 /// Replaces every cell of `g` listing more than `threshold` primitives
 /// (`bounds`: all of them, in the grid's order) by one entry naming its
-/// BVH's root; the BVHs are built in parallel. `None` when the nodes
-/// would not fit below `HYBRID_NODE` (then the grid stays as it was).
-pub fn nest(g: &mut Grid, bounds: &[Bounds], threshold: u32) -> Option<Nested> {
+/// BVH's root; the BVHs are built in parallel. `Err(nodes)` when their
+/// nodes would not fit below `HYBRID_NODE` (then the grid stays as it
+/// was).
+pub fn nest(g: &mut Grid, bounds: &[Bounds], threshold: u32) -> Result<Nested, u64> {
     let ncells = cells_of(g.dims) as usize;
     let crowded: Vec<usize> = (0..ncells)
         .filter(|&c| g.cell_start[c + 1] - g.cell_start[c] > threshold)
@@ -95,7 +94,7 @@ pub fn nest(g: &mut Grid, bounds: &[Bounds], threshold: u32) -> Option<Nested> {
         .collect();
     let total_nodes: u64 = built.iter().map(|(t, _)| t.nodes.len() as u64).sum();
     if total_nodes >= HYBRID_NODE as u64 {
-        return None;
+        return Err(total_nodes);
     }
     // The new lists: each crowded cell one entry, the others as they were.
     let mut offsets = Vec::with_capacity(g.cell_start.len());
@@ -121,7 +120,7 @@ pub fn nest(g: &mut Grid, bounds: &[Bounds], threshold: u32) -> Option<Nested> {
     // The BVHs' nodes with their links made global, and their leaves'
     // lists after the cells'.
     for (tree, leaves) in &built {
-        let node_base = out.nodes.len() as u32;
+        let node_base = out.tree.nodes.len() as u32;
         let leaf_base = refs.len() as u32;
         for n in &tree.nodes {
             let mut n = *n;
@@ -132,20 +131,20 @@ pub fn nest(g: &mut Grid, bounds: &[Bounds], threshold: u32) -> Option<Nested> {
                     n.link[k] += node_base;
                 }
             }
-            out.nodes.push(n);
+            out.tree.nodes.push(n);
         }
         refs.extend_from_slice(leaves);
         out.refs += leaves.len() as u64;
-        out.depth = out.depth.max(tree.depth);
-        out.leaves += tree.leaves;
-        out.max_leaf = out.max_leaf.max(tree.max_leaf);
+        out.tree.depth = out.tree.depth.max(tree.depth);
+        out.tree.leaves += tree.leaves;
+        out.tree.max_leaf = out.tree.max_leaf.max(tree.max_leaf);
     }
     // The empty-space distances after the offsets are unchanged: no cell
     // became empty or listed.
     offsets.extend_from_slice(&g.cell_start[ncells + 1..]);
     g.cell_start = offsets;
     g.refs = refs;
-    Some(out)
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -181,9 +180,10 @@ mod tests {
         assert!(cells >= 1 && refs >= 200, "{cells} {refs}");
         let nested = nest(&mut g, &b, 16).unwrap();
         assert_eq!((nested.cells, nested.refs), (cells, refs));
-        assert!(!nested.nodes.is_empty());
+        assert!(!nested.tree.nodes.is_empty());
         assert!(
-            (nested.nodes.len() as u64) * 128 + 4 * (cells + refs) <= bytes_at_most(cells, refs)
+            (nested.tree.nodes.len() as u64) * 128 + 4 * (cells + refs)
+                <= bytes_at_most(cells, refs)
         );
         let n = cells_of(g.dims) as usize;
         for c in 0..n {
@@ -197,7 +197,7 @@ mod tests {
                 let mut found = Vec::new();
                 let mut stack = vec![new[0] & !HYBRID_NODE];
                 while let Some(k) = stack.pop() {
-                    let node = &nested.nodes[k as usize];
+                    let node = &nested.tree.nodes[k as usize];
                     for l in 0..4 {
                         if node.count[l] > 0 {
                             let a = node.link[l] as usize;

@@ -1036,7 +1036,7 @@ pub fn pack_with_progress(
             }
             (_, dims) => dims,
         };
-        let g = match grid::build(&bounds, dims, &max_refs, progress) {
+        let mut g = match grid::build(&bounds, dims, &max_refs, progress) {
             Ok(g) => g,
             Err(r) => {
                 let over = Need {
@@ -1058,7 +1058,6 @@ pub fn pack_with_progress(
             (p.cell_lo, p.cell_hi) = g.ranges[i];
             prims.push(p);
         }
-        let mut g = g;
         let mut tree = bvh::Bvh::default();
         if structure == Accel::Hybrid {
             // The crowded cells' BVHs, refused by their largest size
@@ -1070,19 +1069,15 @@ pub fn pack_with_progress(
                 ..need
             };
             budget.check(&with)?;
-            let Some(nested) = hybrid::nest(&mut g, &bounds, settings.hybrid_cell) else {
-                return Err(PackError::TooMany {
-                    what: "hybrid BVH nodes",
-                    count: refs,
-                    max: HYBRID_NODE as u64,
-                });
-            };
-            tree = bvh::Bvh {
-                nodes: nested.nodes,
-                depth: nested.depth,
-                leaves: nested.leaves,
-                max_leaf: nested.max_leaf,
-                ..bvh::Bvh::default()
+            tree = match hybrid::nest(&mut g, &bounds, settings.hybrid_cell) {
+                Ok(nested) => nested.tree,
+                Err(nodes) => {
+                    return Err(PackError::TooMany {
+                        what: "hybrid BVH nodes",
+                        count: nodes,
+                        max: HYBRID_NODE as u64,
+                    })
+                }
             };
         }
         (g, tree)
