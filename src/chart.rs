@@ -255,7 +255,13 @@ fn once(
     let t = Instant::now();
     let packed: Packed = run::pack(scene, &plan.settings(c, heuristic), Counting::Traced)?;
     let frame = match (c.device, gpu) {
-        (Device::Cpu, _) => run::render_cpu(&packed, plan.threads, c.precision, &|_, _| {})?,
+        (Device::Cpu, _) => run::render_cpu(
+            &packed,
+            plan.threads,
+            c.precision,
+            crate::cpu::DEFAULT_PACKET,
+            &|_, _| {},
+        )?,
         (Device::Gpu | Device::GpuFast, Some(g)) => {
             let math = if c.device == Device::GpuFast {
                 crate::gpu::GpuMath::Fast

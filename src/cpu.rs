@@ -2,12 +2,14 @@
 //! Tiles of the image go to all cores (rayon); each sample's eye ray walks
 //! its ray tree (`trace::tree`), and pixels average their samples.
 
-use crate::constants::SAMPLING_CORNERS;
+use crate::constants::{ACCEL_BVH, FEAT_TRIANGLE, SAMPLING_CORNERS};
 use crate::pack::Packed;
+use crate::trace::intersect::RayPre;
 use crate::trace::math::{Ray, Real, V3};
+use crate::trace::packet::closest_hit_packet;
 use crate::trace::query::Work;
 use crate::trace::sample::{eye_dir, sample_pos};
-use crate::trace::tree::trace_ray;
+use crate::trace::tree::{trace_ray, trace_ray_from};
 use crate::trace::{RayStats, SceneView};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -32,6 +34,11 @@ pub struct Frame {
     pub phases: Vec<(&'static str, f64)>,
 }
 
+/// The packet width `render` traces eye rays in by default (`--packet`;
+/// docs/method.md, "Packets of rays": 2-6 % faster than single rays on
+/// the SPD scenes under the BVH).
+pub const DEFAULT_PACKET: u32 = 8;
+
 /// Renders on all cores of the current rayon pool, in f32 (the GPU's twin).
 pub fn render(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
     render_as::<f32>(p, progress)
@@ -41,12 +48,27 @@ pub fn render(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
 /// what they cost.
 pub type TileResult = (Vec<[f32; 3]>, RayStats, Work);
 
-/// Renders with the tracer running in float type `F` (f64: the reference).
+/// Renders with the tracer running in float type `F` (f64: the
+/// reference), one ray at a time as the shader walks them (so the work
+/// counters compare with the GPU's).
+pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
+    render_packets::<F>(p, 1, progress)
+}
+
+/// Renders in float type `F` with eye rays traced in packets of `packet`
+/// (1, 4 or 8; any other width: 1) where the structure is the BVH (the
+/// only one packets walk: `trace::packet`): the same image and ray
+/// counts whatever the width; a packet's node visit counts once.
 /// Pixel, sample and tile counts are 64-bit: a 65536 × 65536 image has
 /// 2³² pixels and a (W+1)×(H+1) corner lattice more.
-pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
+pub fn render_packets<F: Real>(
+    p: &Packed,
+    packet: u32,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Frame {
     let s = SceneView::new(p);
     let g = &p.globals;
+    let packet = if g.flags[1] == ACCEL_BVH { packet } else { 1 };
     let (w, h) = (g.image[0], g.image[1]);
     let corners = g.image[3] == SAMPLING_CORNERS;
     // Corner sampling traces the (W+1)×(H+1) corner lattice, then resolves.
@@ -66,16 +88,22 @@ pub fn render_as<F: Real>(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> F
             let mut out = Vec::with_capacity((TILE * TILE) as usize);
             let mut stats = RayStats::default();
             let mut work = Work::default();
-            // x < sw ≤ W + 1 with W a u32: the lattice's last column is
-            // W itself (corners), so `as u32` is exact.
-            for y in ys {
-                for x in xs.clone() {
-                    let c = if corners {
-                        trace_sample::<F>(&s, x as f32, y as f32, &mut stats, &mut work)
-                    } else {
-                        render_pixel::<F>(&s, x as u32, y as u32, &mut stats, &mut work)
-                    };
-                    out.push(c);
+            match packet {
+                4 => tile_packets::<F, 4>(&s, xs, ys, corners, &mut out, &mut stats, &mut work),
+                8 => tile_packets::<F, 8>(&s, xs, ys, corners, &mut out, &mut stats, &mut work),
+                _ => {
+                    // x < sw ≤ W + 1 with W a u32: the lattice's last
+                    // column is W itself (corners), so `as u32` is exact.
+                    for y in ys {
+                        for x in xs.clone() {
+                            let c = if corners {
+                                trace_sample::<F>(&s, x as f32, y as f32, &mut stats, &mut work)
+                            } else {
+                                render_pixel::<F>(&s, x as u32, y as u32, &mut stats, &mut work)
+                            };
+                            out.push(c);
+                        }
+                    }
                 }
             }
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -166,6 +194,97 @@ pub fn render_pixel<F: Real>(
     }
     let inv = 1.0 / spp as f32;
     sum.map(|v| v * inv)
+}
+
+/// One tile's samples traced in packets of `P`, pushed to `out` row by
+/// row as the single-ray loop pushes them. A packet takes the samples of
+/// a block of pixels (2 × 2 for 4 lanes, 4 × 2 for 8), pixel by pixel,
+/// each pixel's samples in order; a pixel's samples are summed in the
+/// single ray's order, so the image is the same bit for bit.
+fn tile_packets<F: Real, const P: usize>(
+    s: &SceneView,
+    xs: std::ops::Range<u64>,
+    ys: std::ops::Range<u64>,
+    corners: bool,
+    out: &mut Vec<[f32; 3]>,
+    stats: &mut RayStats,
+    work: &mut Work,
+) {
+    let g = s.globals;
+    let spp = if corners { 1 } else { g.image[2] as usize };
+    let (bw, bh) = if P >= 8 { (4, 2) } else { (2, 2) };
+    let (tw, th) = ((xs.end - xs.start) as usize, (ys.end - ys.start) as usize);
+    // Each sample's place (pixel of the tile, sample) and image position.
+    let mut order = Vec::with_capacity(tw * th * spp);
+    for by in (0..th).step_by(bh) {
+        for bx in (0..tw).step_by(bw) {
+            for y in by..(by + bh).min(th) {
+                for x in bx..(bx + bw).min(tw) {
+                    let (px, py) = (xs.start + x as u64, ys.start + y as u64);
+                    for k in 0..spp {
+                        let pos = if corners {
+                            (px as f32, py as f32)
+                        } else {
+                            sample_pos(g, px as u32, py as u32, k as u32)
+                        };
+                        order.push(((y * tw + x) * spp + k, pos));
+                    }
+                }
+            }
+        }
+    }
+    let mut colors = vec![[0f32; 3]; tw * th * spp];
+    for chunk in order.chunks(P) {
+        let c = trace_packet::<F, P>(s, chunk, stats, work);
+        for (j, (at, _)) in chunk.iter().enumerate() {
+            colors[*at] = c[j];
+        }
+    }
+    if corners {
+        out.extend_from_slice(&colors);
+        return;
+    }
+    let inv = 1.0 / spp as f32;
+    for px in colors.chunks(spp) {
+        let mut sum = [0f32; 3];
+        for c in px {
+            for i in 0..3 {
+                sum[i] += c[i];
+            }
+        }
+        out.push(sum.map(|v| v * inv));
+    }
+}
+
+/// Up to `P` eye rays through `samples`' image positions traced as a
+/// packet: their closest hits together, then each ray's tree on its own
+/// (`trace_ray_from`). Counts the eye rays. (Their eye hits' feelers go
+/// one by one: as packets they cost 5-20 % more; BENCHMARKS.md.)
+fn trace_packet<F: Real, const P: usize>(
+    s: &SceneView,
+    samples: &[(usize, (f32, f32))],
+    stats: &mut RayStats,
+    work: &mut Work,
+) -> [[f32; 3]; P] {
+    let g = s.globals;
+    let n = samples.len();
+    stats.eye += n as u64;
+    // Lanes past the samples repeat the first ray (their answers unused).
+    let mut rays = [Ray {
+        o: V3::zero(),
+        d: V3::zero(),
+    }; P];
+    for j in 0..P {
+        let (x, y) = samples[if j < n { j } else { 0 }].1;
+        rays[j].d = eye_dir::<F>(g, x, y);
+    }
+    let pres = rays.map(|r| RayPre::new(r.d, s.has(FEAT_TRIANGLE)));
+    let hits = closest_hit_packet(s, &rays, &pres, F::infinity(), work);
+    let mut out = [[0f32; 3]; P];
+    for j in 0..n {
+        out[j] = trace_ray_from(s, rays[j], Some(hits[j]), stats, work).to_f32();
+    }
+    out
 }
 
 /// Each pixel is the mean of its four corners in the (W+1)×(H+1) lattice.

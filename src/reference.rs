@@ -198,7 +198,13 @@ pub fn render(
     progress: run::Progress,
 ) -> Result<Frame> {
     let packed = run::pack(scene, &rs.settings(budget), Counting::Traced)?;
-    run::render_cpu(&packed, threads, Precision::F64, progress)
+    run::render_cpu(
+        &packed,
+        threads,
+        Precision::F64,
+        crate::cpu::DEFAULT_PACKET,
+        progress,
+    )
 }
 
 /// Reads a cached reference; it must have the expected size.
@@ -290,7 +296,7 @@ mod tests {
             Counting::Traced,
         )
         .unwrap();
-        let f = run::render_cpu(&p, Some(1), Precision::F32, &|_, _| {}).unwrap();
+        let f = run::render_cpu(&p, Some(1), Precision::F32, 1, &|_, _| {}).unwrap();
         let e = crate::metrics::Accuracy::of(&a.frame, &f);
         assert!(e.rmse > 0.0 && e.rmse < 0.2, "{e:?}");
     }

@@ -66,6 +66,8 @@ pub struct RenderOptions {
     pub counting: Counting,
     /// The CPU tracer's float type; f64 renders on the CPU only.
     pub precision: Precision,
+    /// The CPU's packet width (`cpu::render_packets`).
+    pub packet: u32,
 }
 
 /// Which backend rendered a frame.
@@ -288,7 +290,8 @@ pub fn render_packed_surveyed(
             Err(e) if opts.backend == Backend::Auto && is_device_fault(&e) => {
                 log::warn!("{e}; finishing the render on the CPU mirror");
                 drop(g);
-                let frame = render_cpu(packed, opts.threads, opts.precision, progress)?;
+                let frame =
+                    render_cpu(packed, opts.threads, opts.precision, opts.packet, progress)?;
                 Ok(done(frame, Used::Cpu, "CPU mirror".into()))
             }
             Err(e) => Err(gpu_error(e)),
@@ -297,7 +300,7 @@ pub fn render_packed_surveyed(
             if let Some(why) = why {
                 log::info!("rendering on the CPU mirror: {why}");
             }
-            let frame = render_cpu(packed, opts.threads, opts.precision, progress)?;
+            let frame = render_cpu(packed, opts.threads, opts.precision, opts.packet, progress)?;
             Ok(done(frame, Used::Cpu, "CPU mirror".into()))
         }
     }
@@ -323,11 +326,12 @@ pub fn gpu_error(e: GpuError) -> anyhow::Error {
 }
 
 /// Renders on the CPU mirror with `threads` workers (None: all cores) in
-/// float type `precision`.
+/// float type `precision`, in packets of `packet` rays.
 pub fn render_cpu(
     packed: &Packed,
     threads: Option<u32>,
     precision: Precision,
+    packet: u32,
     progress: Progress,
 ) -> Result<Frame> {
     let mut b = rayon::ThreadPoolBuilder::new();
@@ -336,8 +340,8 @@ pub fn render_cpu(
     }
     let pool = b.build().context("cannot start worker threads")?;
     Ok(pool.install(|| match precision {
-        Precision::F32 => cpu::render(packed, progress),
-        Precision::F64 => cpu::render_as::<f64>(packed, progress),
+        Precision::F32 => cpu::render_packets::<f32>(packed, packet, progress),
+        Precision::F64 => cpu::render_packets::<f64>(packed, packet, progress),
     }))
 }
 

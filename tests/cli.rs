@@ -624,3 +624,43 @@ fn readme_lists_every_option_of_every_command() {
         );
     }
 }
+
+/// `--packet`: widths 1, 4 and 8 write the same image and count the same
+/// rays under the BVH (where packets walk); any other width is refused
+/// with exit 2 before anything is written.
+#[test]
+fn packet_widths_render_one_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/showcase.toml");
+    let mut images = Vec::new();
+    for width in ["1", "4", "8"] {
+        let out = dir.path().join(format!("p{width}.png"));
+        let stats = dir.path().join(format!("p{width}.json"));
+        whitted()
+            .args(["render", "-q", "--backend", "cpu", "--accel", "bvh"])
+            .args([
+                "--width", "61", "--height", "37", "--spp", "2", "--packet", width,
+            ])
+            .arg(&scene)
+            .arg("-o")
+            .arg(&out)
+            .arg("--stats")
+            .arg(&stats)
+            .assert()
+            .success();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        images.push((image::open(&out).unwrap().to_rgb32f(), j["rays"].clone()));
+    }
+    assert!(images.iter().all(|i| *i == images[0]));
+    let out = dir.path().join("bad.png");
+    let a = whitted()
+        .args(["render", "-q", "--backend", "cpu", "--packet", "3"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .code(2);
+    assert!(String::from_utf8_lossy(&a.get_output().stderr).contains("--packet"));
+    assert!(!out.exists());
+}

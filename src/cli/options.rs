@@ -107,9 +107,23 @@ pub struct RenderOpts {
     /// Worker threads for the CPU backend (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
+    /// The CPU backend traces eye rays in packets of this many (1: one by
+    /// one) where the structure is the BVH; the image is the same bit for
+    /// bit. `--stats` then counts a packet's visit to a node once
+    /// (docs/method.md, "Packets of rays") [default: 8].
+    #[arg(long, value_parser = ["1", "4", "8"])]
+    pub packet: Option<String>,
 }
 
 impl RenderOpts {
+    /// The CPU's packet width (`--packet`).
+    pub fn packet(&self) -> u32 {
+        self.packet
+            .as_deref()
+            .and_then(|p| p.parse().ok())
+            .unwrap_or(crate::cpu::DEFAULT_PACKET)
+    }
+
     /// The preset's settings (or the defaults) with every option given
     /// over them.
     pub fn settings(&self) -> Settings {

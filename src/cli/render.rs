@@ -99,6 +99,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         threads: a.opts.threads,
         counting: a.opts.counting(),
         precision: a.precision,
+        packet: a.opts.packet(),
     };
     let t_pack = Instant::now();
     let bar = Bar::new(ui, "packing");

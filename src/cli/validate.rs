@@ -63,7 +63,13 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
     let gpu_frame = g
         .render(&packed, &gopts, &|_, _| {})
         .map_err(run::gpu_error)?;
-    let cpu_frame = run::render_cpu(&packed, a.opts.threads, run::Precision::F32, &|_, _| {})?;
+    let cpu_frame = run::render_cpu(
+        &packed,
+        a.opts.threads,
+        run::Precision::F32,
+        a.opts.packet(),
+        &|_, _| {},
+    )?;
     let tol = Tolerance::for_kernel(g.info().kind, gopts.math);
     let c = metrics::compare(&cpu_frame, &gpu_frame, &tol);
     if let Some(path) = &a.diff {

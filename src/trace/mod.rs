@@ -8,6 +8,7 @@ pub mod intersect;
 pub mod lightbuf;
 pub mod math;
 pub mod octree;
+pub mod packet;
 pub mod query;
 pub mod sample;
 pub mod shade;

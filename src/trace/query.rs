@@ -142,28 +142,44 @@ pub fn query_prim<F: Real>(
     work: &mut Work,
 ) -> bool {
     work.tests += 1;
-    if let Some(h) = intersect(prim, s.extra, ray, pre, q.bound) {
-        if q.shadow {
-            let kt = V3::of(&s.materials[prim.material() as usize].kt);
-            if kt.max_elem() > F::zero() && !(h.t >= q.lo && h.t < q.hi) {
-                return false;
-            }
-            q.trans = q.trans.mul_elem(kt);
-            if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
-                work.shadow_cache[q.light] = i + 1;
-            }
-            if q.trans.max_elem() <= F::zero() {
-                q.done = true;
-            }
-        } else {
-            // h.t ≤ q.t: nearer, or a tie.
-            let r = rank(s, prim, i);
-            if h.t < q.t || r < q.rank {
-                q.t = h.t;
-                q.bound = h.t.next_up_t();
-                q.rank = r;
-                q.hit = Some((h, i));
-            }
+    match intersect(prim, s.extra, ray, pre, q.bound) {
+        Some(h) => query_hit(s, q, prim, i, h, work),
+        None => q.done,
+    }
+}
+
+/// What query `q` makes of hit `h` of `prim` (primitive `i`) below its
+/// bound: `query_prim` once the intersection test has found it (a
+/// packet's tests find it for several rays at once: `trace::packet`).
+#[inline(always)]
+pub fn query_hit<F: Real>(
+    s: &SceneView,
+    q: &mut Query<F>,
+    prim: &Prim,
+    i: u32,
+    h: Hit<F>,
+    work: &mut Work,
+) -> bool {
+    if q.shadow {
+        let kt = V3::of(&s.materials[prim.material() as usize].kt);
+        if kt.max_elem() > F::zero() && !(h.t >= q.lo && h.t < q.hi) {
+            return false;
+        }
+        q.trans = q.trans.mul_elem(kt);
+        if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
+            work.shadow_cache[q.light] = i + 1;
+        }
+        if q.trans.max_elem() <= F::zero() {
+            q.done = true;
+        }
+    } else {
+        // h.t ≤ q.t: nearer, or a tie.
+        let r = rank(s, prim, i);
+        if h.t < q.t || r < q.rank {
+            q.t = h.t;
+            q.bound = h.t.next_up_t();
+            q.rank = r;
+            q.hit = Some((h, i));
         }
     }
     q.done

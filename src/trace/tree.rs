@@ -17,7 +17,7 @@
 //! on what it would meet).
 
 use super::accel::closest_hit;
-use super::intersect::{normals, RayPre};
+use super::intersect::{normals, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::query::Work;
 use super::shade::{reflect_dir, refract_dir, shade};
@@ -54,6 +54,19 @@ pub fn trace_ray<F: Real>(
     stats: &mut RayStats,
     work: &mut Work,
 ) -> V3<F> {
+    trace_ray_from(s, ray, None, stats, work)
+}
+
+/// Intensity arriving along an eye ray whose closest hit is `first` when
+/// given (found beforehand by a packet: `trace::packet`), found here
+/// otherwise.
+pub fn trace_ray_from<F: Real>(
+    s: &SceneView,
+    ray: Ray<F>,
+    mut first: Option<Option<(Hit<F>, u32)>>,
+    stats: &mut RayStats,
+    work: &mut Work,
+) -> V3<F> {
     let g = s.globals;
     let max_depth = g.trace[0];
     let min_weight = F::of(g.params[0]);
@@ -74,8 +87,11 @@ pub fn trace_ray<F: Real>(
         sp -= 1;
         let e = stack[sp];
         let r = Ray { o: e.o, d: e.d };
-        let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
-        let Some((h, pi)) = closest_hit(s, &r, &pre, F::infinity(), work) else {
+        let found = first.take().unwrap_or_else(|| {
+            let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
+            closest_hit(s, &r, &pre, F::infinity(), work)
+        });
+        let Some((h, pi)) = found else {
             // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
             if e.medium.max_elem() <= F::zero() {
                 color += e.w.mul_elem(background);
