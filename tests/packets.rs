@@ -80,13 +80,18 @@ fn scene(seed: u64, count: usize) -> Scene {
                 center: c,
                 radius: (0.05 + r.f() * 0.8) * s,
             },
+            // Smooth triangles: their hits' barycentric weights shade.
             3 => Shape::Triangle {
                 vertices: [
                     c,
                     c + v(r.f(), r.f(), 0.0) * s,
                     c + v(0.0, r.f(), r.f() + 0.1) * s,
                 ],
-                normals: None,
+                normals: Some(Box::new([
+                    v(0.0, -1.0, 0.2),
+                    v(0.3, -1.0, 0.0),
+                    v(-0.3, -1.0, 0.1),
+                ])),
             },
             4 => Shape::Box {
                 min: c,
@@ -420,30 +425,48 @@ fn example_scene_renders_the_same_in_packets_under_every_structure() {
     }
 }
 
-/// Packets walk fewer BVH nodes than their rays alone on coherent eye
-/// rays (the point of them), and about the same primitives.
-#[test]
-fn eye_packets_visit_fewer_nodes() {
-    let p = pack_bvh(&scene(3, 400), common::small(64, 48));
-    let s = SceneView::new(&p);
+/// Eye rays over a whole image, in packets of `P` (blocks of 2 × 2 or
+/// 4 × 2 pixels), against each ray alone: the same hits (distance,
+/// barycentric weights, primitive); the work of both.
+fn eye_packets<const P: usize>(p: &Packed) -> (Work, Work) {
+    let s = SceneView::new(p);
+    let (w, h) = (p.globals.image[0], p.globals.image[1]);
+    let bw = if P == 8 { 4 } else { 2 };
     let (mut alone, mut packed) = (Work::default(), Work::default());
-    for by in (0..48).step_by(2) {
-        for bx in (0..64).step_by(2) {
-            let rays: [Ray<f32>; 4] = std::array::from_fn(|j| Ray {
+    let mut triangles = 0;
+    for by in (0..h).step_by(2) {
+        for bx in (0..w).step_by(bw) {
+            let rays: [Ray<f32>; P] = std::array::from_fn(|j| Ray {
                 o: V3::zero(),
                 d: eye_dir(
                     &p.globals,
-                    (bx + j % 2) as f32 + 0.5,
-                    (by + j / 2) as f32 + 0.5,
+                    (bx + j as u32 % bw as u32) as f32 + 0.5,
+                    (by + j as u32 / bw as u32) as f32 + 0.5,
                 ),
             });
             let pres = rays.map(|r| RayPre::new(r.d, true));
-            closest_hit_packet(&s, &rays, &pres, f32::INFINITY, &mut packed);
-            for j in 0..4 {
-                closest_hit(&s, &rays[j], &pres[j], f32::INFINITY, &mut alone);
+            let hits = closest_hit_packet(&s, &rays, &pres, f32::INFINITY, &mut packed);
+            for j in 0..P {
+                let one = closest_hit(&s, &rays[j], &pres[j], f32::INFINITY, &mut alone);
+                assert_eq!(hits[j], one, "pixel block ({bx}, {by}) lane {j}");
+                if let Some((_, i)) = one {
+                    triangles +=
+                        (p.prims[i as usize].kind() == whitted::constants::KIND_TRIANGLE) as u32;
+                }
             }
         }
     }
+    assert!(triangles > 40, "only {triangles} triangle hits");
+    (alone, packed)
+}
+
+/// Packets walk fewer BVH nodes than their rays alone on coherent eye
+/// rays (the point of them), and test about the same primitives.
+#[test]
+fn eye_packets_find_the_same_hits_visiting_fewer_nodes() {
+    let p = pack_bvh(&scene(3, 400), common::small(128, 96));
+    eye_packets::<8>(&p);
+    let (alone, packed) = eye_packets::<4>(&p);
     assert!(
         packed.nodes * 2 < alone.nodes,
         "nodes: {} in packets against {} alone",

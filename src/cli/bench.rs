@@ -67,6 +67,11 @@ pub struct BenchArgs {
     /// gpu:llvmpipe/fast; default: exact only (`render --gpu-math`).
     #[arg(long, value_enum, value_delimiter = ',')]
     pub gpu_math: Vec<crate::gpu::GpuMath>,
+    /// CPU packet widths to time (comma-separated, e.g. 1,8): the cpu and
+    /// auto backends once per width, labelled e.g. cpu/p8; default:
+    /// `render`'s (`render --packet`; docs/method.md, "Packets of rays").
+    #[arg(long, value_delimiter = ',', value_parser = ["1", "4", "8"])]
+    pub packet: Vec<String>,
     /// Also render each scene with POV-Ray 3.7 (exported by `whitted
     /// export`, same size and depth, all cores, no anti-aliasing: pixel
     /// centres, or the corner rays of --preset spd),
@@ -260,19 +265,31 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
             } else {
                 a.shadows.iter().map(Some).collect()
             };
+            // Packets are the CPU's: the GPU runs once whatever the widths.
+            let packets: Vec<Option<&String>> = if a.packet.is_empty() || b == "gpu" {
+                vec![None]
+            } else {
+                a.packet.iter().map(Some).collect()
+            };
             for accel in &accels {
                 for sh in &shadows {
-                    let mut l = label.clone();
-                    for part in [accel, sh].into_iter().flatten() {
-                        l = format!("{l}/{part}");
+                    for pk in &packets {
+                        let mut l = label.clone();
+                        for part in [accel, sh].into_iter().flatten() {
+                            l = format!("{l}/{part}");
+                        }
+                        if let Some(w) = pk {
+                            l = format!("{l}/p{w}");
+                        }
+                        out.push(Engine::Whitted {
+                            backend: b.clone(),
+                            accel: accel.cloned(),
+                            shadows: sh.cloned(),
+                            gpu_math,
+                            packet: pk.cloned(),
+                            label: l,
+                        });
                     }
-                    out.push(Engine::Whitted {
-                        backend: b.clone(),
-                        accel: accel.cloned(),
-                        shadows: sh.cloned(),
-                        gpu_math,
-                        label: l,
-                    });
                 }
             }
         }

@@ -16,7 +16,8 @@
 //! the bound let through, and carry the lanes entering each child down
 //! the walk (`EXACT_FEELERS`). At a leaf each lane's own box test
 //! (`bvh::bvh_entries`' arithmetic, one vector operation per axis)
-//! decides which rays test its primitives, spheres all lanes at once.
+//! decides which rays test its primitives, spheres and triangles all
+//! lanes at once.
 //! So each ray tests the primitives of the leaves it enters, as alone,
 //! and more only where its own walk would have dropped a leaf for a hit
 //! found meanwhile, which cannot change a closest hit (ties go to the
@@ -39,7 +40,9 @@ use super::intersect::{intersect, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::query::{query_hit, query_prim, query_unbounded, Query, Work};
 use super::SceneView;
-use crate::constants::{ACCEL_BVH, BVH_STACK_SIZE, BVH_WIDTH, KIND_SPHERE, SHADOW_CACHE_LIGHTS};
+use crate::constants::{
+    ACCEL_BVH, BVH_STACK_SIZE, BVH_WIDTH, KIND_SPHERE, KIND_TRIANGLE, SHADOW_CACHE_LIGHTS,
+};
 use crate::pack::layout::BvhNode;
 
 const W: usize = BVH_WIDTH as usize;
@@ -174,6 +177,55 @@ struct Lanewise<F, const P: usize> {
     o: [[F; P]; 3],
     d: [[F; P]; 3],
     inv: [[F; P]; 3],
+    /// The triangle test's shear per lane, and its axis permutation when
+    /// every lane has the same one.
+    shear: [[F; P]; 3],
+    k: Option<[usize; 3]>,
+}
+
+/// Triangle `prim` against every lane's ray below its `bound` when the
+/// lanes share the watertight test's axis permutation: each lane's hit
+/// (t = +∞: none), `intersect::triangle`'s arithmetic lane by lane.
+#[inline(always)]
+fn triangle_lanes<F: Real, const P: usize>(
+    prim: &crate::pack::layout::Prim,
+    lw: &Lanewise<F, P>,
+    [kx, ky, kz]: [usize; 3],
+    bound: &[F; P],
+) -> ([F; P], [F; P], [F; P]) {
+    let v = [&prim.a, &prim.b, &prim.c].map(|p| [F::of(p[kx]), F::of(p[ky]), F::of(p[kz])]);
+    let (mut ot, mut ou, mut ov) = ([F::infinity(); P], [F::zero(); P], [F::zero(); P]);
+    let zero = F::zero();
+    for j in 0..P {
+        let (ox, oy, oz) = (lw.o[kx][j], lw.o[ky][j], lw.o[kz][j]);
+        let (sx, sy, sz) = (lw.shear[0][j], lw.shear[1][j], lw.shear[2][j]);
+        let (a, b, c) = (
+            [v[0][0] - ox, v[0][1] - oy, v[0][2] - oz],
+            [v[1][0] - ox, v[1][1] - oy, v[1][2] - oz],
+            [v[2][0] - ox, v[2][1] - oy, v[2][2] - oz],
+        );
+        let ax = a[0] - sx * a[2];
+        let ay = a[1] - sy * a[2];
+        let bx = b[0] - sx * b[2];
+        let by = b[1] - sy * b[2];
+        let cx = c[0] - sx * c[2];
+        let cy = c[1] - sy * c[2];
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let outside = (u < zero || v < zero || w < zero) && (u > zero || v > zero || w > zero);
+        let det = u + v + w;
+        let az = sz * a[2];
+        let bz = sz * b[2];
+        let cz = sz * c[2];
+        let tt = u * az + v * bz + w * cz;
+        let t = tt / det;
+        let hit = !outside && det != zero && t > zero && t < bound[j];
+        ot[j] = if hit { t } else { F::infinity() };
+        ou[j] = u / det;
+        ov[j] = v / det;
+    }
+    (ot, ou, ov)
 }
 
 /// Sphere `prim` against every lane's ray below its `bound`: each lane's
@@ -331,7 +383,18 @@ pub fn bvh_walk_packet<F: Real, const P: usize>(
         o: [[F::zero(); P]; 3],
         d: [[F::zero(); P]; 3],
         inv: [[F::zero(); P]; 3],
+        shear: [[F::zero(); P]; 3],
+        k: None,
     };
+    let k0 = [pres[0].kx, pres[0].ky, pres[0].kz];
+    if pres.iter().all(|p| [p.kx, p.ky, p.kz] == k0) {
+        lw.k = Some(k0);
+    }
+    for j in 0..P {
+        lw.shear[0][j] = pres[j].sx;
+        lw.shear[1][j] = pres[j].sy;
+        lw.shear[2][j] = pres[j].sz;
+    }
     for i in 0..3 {
         for j in 0..P {
             lw.o[i][j] = rays[j].o.get(i);
@@ -376,9 +439,16 @@ pub fn bvh_walk_packet<F: Real, const P: usize>(
                 let mut bound = qs.map(|q| q.bound);
                 for i in link..link + count {
                     let prim = &s.prims[i as usize];
-                    if prim.kind() == KIND_SPHERE {
+                    let lanewise = match prim.kind() {
+                        KIND_SPHERE => {
+                            let t = sphere_lanes(prim, &lw, &bound);
+                            Some((t, [F::zero(); P], [F::zero(); P]))
+                        }
+                        KIND_TRIANGLE => lw.k.map(|k| triangle_lanes(prim, &lw, k, &bound)),
+                        _ => None,
+                    };
+                    if let Some((th, tu, tv)) = lanewise {
                         // All lanes at once; then each lane's query.
-                        let th = sphere_lanes(prim, &lw, &bound);
                         work.tests += m.count_ones() as u64;
                         for j in lanes(m) {
                             if th[j] == F::infinity() {
@@ -386,8 +456,8 @@ pub fn bvh_walk_packet<F: Real, const P: usize>(
                             }
                             let h = Hit {
                                 t: th[j],
-                                u: F::zero(),
-                                v: F::zero(),
+                                u: tu[j],
+                                v: tv[j],
                             };
                             if query_hit(s, &mut qs[j], prim, i, h, work) {
                                 m &= !(1 << j);
