@@ -54,7 +54,7 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     if (cached != 0u) {
         work_tests += 1u;
         Hit hc;
-        if (intersect(prims[cached - 1u], ray, pre, dist, hc)) {
+        if (intersect(load_prim(cached - 1u), ray, pre, dist, hc)) {
             return vec3(0.0);
         }
     }

@@ -116,7 +116,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
         bool next = true;
         if (in_leaf) {
             uint i = nested ? refs[link] : link;
-            Prim prim = prims[i];
+            Prim prim = load_prim(i);
             if (!(nested && listed_at(prim, prev_axis, prev_coord)) &&
                 query_prim(q, prim, i, ray, pre)) {
                 ended = true;

@@ -273,7 +273,7 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
                 }
                 continue;
             }
-            Prim prim = prims[r];
+            Prim prim = load_prim(r);
             if (seen_before(prim, dda)) {
                 continue;
             }

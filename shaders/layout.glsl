@@ -60,7 +60,7 @@ struct Light {
 // One node of the 4-wide BVH (src/pack/layout.rs, BvhNode): lane k of
 // each field describes child k. lo[axis], hi[axis]: the children's boxes
 // on that axis. count[k] > 0: a leaf of count[k] primitives from
-// prims[link[k]]; count[k] = 0 and link[k] > 0: the node link[k]; both 0:
+// primitive link[k]; count[k] = 0 and link[k] > 0: the node link[k]; both 0:
 // no child (an empty box).
 struct BvhNode {
     vec4 lo[3];
@@ -70,7 +70,10 @@ struct BvhNode {
 };
 
 layout(set = 0, binding = 0, std430) readonly buffer GlobalsBuf { Globals g; };
-layout(set = 0, binding = 1, std430) readonly buffer PrimsBuf { Prim prims[]; };
+// The primitives, 16-byte words: an array of structures (primitive i's
+// four words at 4i) or, under PRIMS_SOA, a structure of arrays (word k of
+// primitive i at k·n + i, n the primitive count); read through load_prim.
+layout(set = 0, binding = 1, std430) readonly buffer PrimsBuf { uvec4 prim_words[]; };
 layout(set = 0, binding = 2, std430) readonly buffer ExtraBuf { vec4 extra[]; };
 layout(set = 0, binding = 3, std430) readonly buffer MaterialsBuf { Material materials[]; };
 layout(set = 0, binding = 4, std430) readonly buffer LightsBuf { Light lights[]; };
@@ -112,6 +115,28 @@ const bool HAS_SMOOTH = (FEATURES & FEAT_SMOOTH) != 0u;
 // differs from the scene's.
 layout(constant_id = 3) const uint STRUCTURE = 0xFFFFFFFFu;
 const bool STRUCTURE_ANY = STRUCTURE == 0xFFFFFFFFu;
+
+// Bit 9: the primitives lie as a structure of arrays (src/gpu/mod.rs,
+// PrimLayout; the default: as structures).
+const bool PRIMS_SOA = !STRUCTURE_ANY && (STRUCTURE & 512u) != 0u;
+
+// Primitive i, from either layout (bit moves only: the same values).
+Prim load_prim(uint i) {
+    uvec4 h, a, b, c;
+    if (PRIMS_SOA) {
+        uint n = g.counts.y;
+        h = prim_words[i];
+        a = prim_words[n + i];
+        b = prim_words[2u * n + i];
+        c = prim_words[3u * n + i];
+    } else {
+        h = prim_words[4u * i];
+        a = prim_words[4u * i + 1u];
+        b = prim_words[4u * i + 2u];
+        c = prim_words[4u * i + 3u];
+    }
+    return Prim(h.x, h.y, h.z, h.w, uintBitsToFloat(a), uintBitsToFloat(b), uintBitsToFloat(c));
+}
 
 // The scene's acceleration structure is ACCEL_* accel.
 bool uses_accel(uint accel) {

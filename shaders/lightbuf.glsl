@@ -74,7 +74,7 @@ void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell) {
     uint k = start;
     for (; k < end; k++) {
         uint r = lb_refs[k];
-        if (query_prim(q, prims[r], r, ray, pre)) {
+        if (query_prim(q, load_prim(r), r, ray, pre)) {
             break;
         }
     }

@@ -61,12 +61,12 @@ void main() {
         // of the shading normal, both at p = o + d·t.
         RayPre pre = ray_pre(ray.d);
         Hit h;
-        if (intersect(prims[it.u.x], ray, pre, tmax, h)) {
+        if (intersect(load_prim(it.u.x), ray, pre, tmax, h)) {
             res.a = vec4(1.0, h.t, h.u, h.v);
             PRECISE vec3 p = ray.o + ray.d * h.t;
             vec3 ng;
             vec3 ns;
-            normals(prims[it.u.x], p, h, ng, ns);
+            normals(load_prim(it.u.x), p, h, ng, ns);
             res.b = vec4(ng, 0.0);
             res.u = uvec4(floatBitsToUint(ns), 0u);
         }

@@ -139,7 +139,7 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
 // see grid.glsl.)
 void query_unbounded(inout Query q, Ray ray, RayPre pre) {
     for (uint i = g.counts.x; i < g.counts.y; i++) {
-        if (query_prim(q, prims[i], i, ray, pre)) {
+        if (query_prim(q, load_prim(i), i, ray, pre)) {
             break;
         }
     }

@@ -69,7 +69,7 @@ vec3 trace_ray(Ray ray) {
             PRECISE vec3 x = -e.medium * h.t;
             w = w * vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
         }
-        Prim prim = prims[pi];
+        Prim prim = load_prim(pi);
         Material mat = materials[prim_material(prim)];
         PRECISE vec3 p = e.o + e.d * h.t;
         vec3 ng;

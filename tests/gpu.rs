@@ -541,6 +541,83 @@ fn tiles_and_workgroups_do_not_change_the_image() {
     common::assert_no_validation_errors();
 }
 
+/// The primitives' layout in the device's buffer (`--prim-layout`) is
+/// plumbing too: both layouts give the same image and rays, every
+/// structure and primitive kind, and the CPU mirror's bit for bit on
+/// lavapipe; the SoA bytes are the AoS bytes transposed.
+#[test]
+fn prim_layouts_do_not_change_the_image() {
+    use whitted::gpu::PrimLayout;
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    // Every scene under the grid and the BVH, the showcase under every
+    // structure (each walk loads its primitives at its own place).
+    let mut cases: Vec<(PathBuf, Accel)> = scene_files()
+        .into_iter()
+        .flat_map(|f| [(f.clone(), Accel::Grid), (f, Accel::Bvh)])
+        .collect();
+    let showcase = common::repo().join("scenes/showcase.toml");
+    cases.push((showcase.clone(), Accel::Octree));
+    cases.push((showcase, Accel::Hybrid));
+    for (path, accel) in cases {
+        let p = common::load(
+            &path,
+            &Settings {
+                accel,
+                ..common::small(40, 30)
+            },
+        );
+        let name = format!("{} {accel:?}", path.display());
+        let aos = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap();
+        let soa = g
+            .render(
+                &p,
+                &GpuOptions {
+                    prim_layout: PrimLayout::Soa,
+                    ..Default::default()
+                },
+                &|_, _| {},
+            )
+            .unwrap();
+        let bits = |f: &Frame| {
+            f.pixels
+                .iter()
+                .flatten()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert!(bits(&aos) == bits(&soa), "{name}: the layouts differ");
+        assert_eq!(aos.stats, soa.stats, "{name}");
+        if exact {
+            let cpu = cpu::render(&p, &|_, _| {});
+            assert!(
+                bits(&soa) == bits(&cpu),
+                "{name}: SoA against the CPU mirror"
+            );
+        }
+    }
+    let p = common::load(
+        &common::repo().join("scenes/mesh.toml"),
+        &common::small(8, 8),
+    );
+    let (aos, soa) = (
+        PrimLayout::Aos.bytes(&p.prims),
+        PrimLayout::Soa.bytes(&p.prims),
+    );
+    let n = p.prims.len();
+    assert_eq!(aos.len(), soa.len());
+    for i in [0, n / 2, n - 1] {
+        for k in 0..4 {
+            assert_eq!(
+                aos[i * 64 + k * 16..i * 64 + k * 16 + 16],
+                soa[(k * n + i) * 16..(k * n + i) * 16 + 16],
+                "primitive {i}, word {k}"
+            );
+        }
+    }
+    common::assert_no_validation_errors();
+}
+
 #[test]
 fn over_the_device_limits_is_a_clear_error() {
     let Some(g) = common::gpu() else { return };

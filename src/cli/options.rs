@@ -203,6 +203,12 @@ pub struct GpuArgs {
     /// arithmetic".
     #[arg(long, value_enum, value_name = "MATH", default_value_t = GpuMath::Exact)]
     pub gpu_math: GpuMath,
+    /// How the primitives lie in the GPU's buffer: an array of 64-byte
+    /// structures, or a structure of arrays (each 16-byte field of every
+    /// primitive together). The same image; the speed is the device's
+    /// (docs/profiling.md, "Memory layout of the primitives").
+    #[arg(long, value_enum, value_name = "LAYOUT", default_value_t = gpu::PrimLayout::Aos)]
+    pub prim_layout: gpu::PrimLayout,
 }
 
 impl GpuArgs {
@@ -221,6 +227,7 @@ impl GpuArgs {
             },
             fence_timeout: self.fence_timeout,
             math: self.gpu_math,
+            prim_layout: self.prim_layout,
             ..Default::default()
         }
     }

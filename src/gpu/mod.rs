@@ -317,6 +317,50 @@ pub enum PipelineCache {
     Dir(PathBuf),
 }
 
+/// How the primitives lie in the GPU's buffer (`--prim-layout`;
+/// docs/profiling.md, "Memory layout of the primitives"). The CPU mirror
+/// reads its own array of structures either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PrimLayout {
+    /// Array of structures: primitive i's 64 bytes together (its header,
+    /// then a, b, c), as `pack::layout::Prim`.
+    #[default]
+    Aos,
+    /// Structure of arrays: every header, then every a, every b, every c
+    /// (16 bytes each), so that lanes reading one field of neighbouring
+    /// primitives read neighbouring words.
+    Soa,
+}
+
+impl PrimLayout {
+    /// The name `--prim-layout` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            PrimLayout::Aos => "aos",
+            PrimLayout::Soa => "soa",
+        }
+    }
+
+    /// The primitives' bytes as the shader reads them in this layout
+    /// (`load_prim`, shaders/layout.glsl).
+    pub fn bytes(self, prims: &[crate::pack::layout::Prim]) -> std::borrow::Cow<'_, [u8]> {
+        match self {
+            PrimLayout::Aos => std::borrow::Cow::Borrowed(bytemuck::cast_slice(prims)),
+            PrimLayout::Soa => {
+                let mut out = Vec::with_capacity(std::mem::size_of_val(prims));
+                for field in 0..4 {
+                    for p in prims {
+                        let words: &[u8; 64] = bytemuck::cast_ref(p);
+                        out.extend_from_slice(&words[field * 16..field * 16 + 16]);
+                    }
+                }
+                std::borrow::Cow::Owned(out)
+            }
+        }
+    }
+}
+
 /// The render kernel's float arithmetic (`--gpu-math`; docs/gpu.md,
 /// "Exact and fast shader arithmetic").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -406,6 +450,8 @@ pub struct GpuOptions {
     pub pipeline_cache: PipelineCache,
     /// Which render kernel: exact (`precise`, the default) or fast.
     pub math: GpuMath,
+    /// How the primitives lie in the device's buffer.
+    pub prim_layout: PrimLayout,
     /// Neither `--workgroup` nor `--tile` was given: `render` may use the
     /// shape `whitted profile --save` stored for the device
     /// (`profile::apply_saved`).
@@ -426,6 +472,7 @@ impl Default for GpuOptions {
             pipeline_cache: PipelineCache::Default,
             saved_shape: false,
             math: GpuMath::Exact,
+            prim_layout: PrimLayout::Aos,
         }
     }
 }
@@ -533,9 +580,10 @@ type KernelCache = Mutex<HashMap<(&'static str, [u32; 4]), Arc<Kernel>>>;
 /// Specialization constant 3 of `render.comp` (`STRUCTURE`,
 /// shaders/layout.glsl) for a scene packed with `flags`
 /// (`Globals::flags`): bits 0-3 the structure (`ACCEL_*`), bits 4-7 the
-/// octree's walk, bit 8 light buffers. The walks the scene does not use
-/// then compile out, which llvmpipe would otherwise run, masked, on every
-/// query (docs/profiling.md).
+/// octree's walk, bit 8 light buffers; bit 9 the primitives' layout
+/// (`PRIMS_SOA`: set by `render_with` for `PrimLayout::Soa`). The walks
+/// the scene does not use then compile out, which llvmpipe would
+/// otherwise run, masked, on every query (docs/profiling.md).
 pub fn structure_key(flags: [u32; 4]) -> u32 {
     let accel = flags[1] & 15;
     let walk = if accel == crate::constants::ACCEL_OCTREE {
@@ -545,6 +593,15 @@ pub fn structure_key(flags: [u32; 4]) -> u32 {
     };
     let light_buffers = u32::from(flags[3] > 0);
     accel | walk << 4 | light_buffers << 8
+}
+
+/// Bit 9 of specialization constant 3 (`PRIMS_SOA` in
+/// shaders/layout.glsl): the primitives' layout.
+pub fn prims_key(layout: PrimLayout) -> u32 {
+    match layout {
+        PrimLayout::Aos => 0,
+        PrimLayout::Soa => 1 << 9,
+    }
 }
 
 /// An open device with its kernels, reusable across renders and probes.
@@ -704,11 +761,12 @@ impl Gpu {
         cmds: &Commands,
         p: &Packed,
         staged: bool,
+        layout: PrimLayout,
     ) -> Result<SceneBuffers, GpuError> {
         let b = |name: &str, bytes: &[u8]| Buffer::upload(&self.ctx, cmds, name, bytes, staged);
         let bufs = vec![
             b("globals", bytemuck::bytes_of(&p.globals))?,
-            b("prims", bytemuck::cast_slice(&p.prims))?,
+            b("prims", &layout.bytes(&p.prims))?,
             b("extra", bytemuck::cast_slice(&p.extra))?,
             b("materials", bytemuck::cast_slice(&p.materials))?,
             b("lights", bytemuck::cast_slice(&p.lights))?,
@@ -831,12 +889,12 @@ impl Gpu {
                 (0, opts.workgroup[0]),
                 (1, opts.workgroup[1]),
                 (2, g.trace[1]),
-                (3, structure_key(g.flags)),
+                (3, structure_key(g.flags) | prims_key(opts.prim_layout)),
             ],
         )?;
         lap(&mut phases, "pipeline");
         let cmds = Commands::new(&self.ctx)?;
-        let scene = self.upload_scene(&cmds, packed, opts.staging)?;
+        let scene = self.upload_scene(&cmds, packed, opts.staging, opts.prim_layout)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
         let counters = Buffer::readback(&self.ctx, "counters", 48)?;
         let mut binds = scene.bindings();
@@ -982,7 +1040,9 @@ impl Gpu {
             &[],
         )?;
         let cmds = Commands::new(&self.ctx)?;
-        let scene = self.upload_scene(&cmds, packed, false)?;
+        // The probe kernel keeps STRUCTURE's default: the primitives as
+        // structures.
+        let scene = self.upload_scene(&cmds, packed, false, PrimLayout::Aos)?;
         let input = Buffer::host_input(&self.ctx, "probe items", bytemuck::cast_slice(items))?;
         let out_len = std::mem::size_of_val(items);
         let output = Buffer::readback(&self.ctx, "probe results", out_len as u64)?;
