@@ -69,16 +69,7 @@ fn main() {
         }
     }
 
-    let best = |f: &mut dyn FnMut() -> u64| {
-        let mut t = f64::INFINITY;
-        let mut n = 0;
-        for _ in 0..repeat {
-            let t0 = Instant::now();
-            n = f();
-            t = t.min(t0.elapsed().as_secs_f64());
-        }
-        (t, n)
-    };
+    let best = |f: &mut dyn FnMut() -> u64| best_of(repeat, f);
     let (te, hits) = best(&mut || {
         let mut work = Work::default();
         eye.iter()
@@ -137,6 +128,18 @@ fn main() {
             .unwrap_or_else(|e| panic!("{out}: {e}"));
         println!("wrote {out}");
     }
+}
+
+/// The least time of `repeat` runs of `f`, and what it returned.
+fn best_of(repeat: usize, f: &mut dyn FnMut() -> u64) -> (f64, u64) {
+    let mut t = f64::INFINITY;
+    let mut n = 0;
+    for _ in 0..repeat {
+        let t0 = Instant::now();
+        n = f();
+        t = t.min(t0.elapsed().as_secs_f64());
+    }
+    (t, n)
 }
 
 /// A packet's rays and their precomputed values.
@@ -205,16 +208,7 @@ fn packets<const P: usize>(s: &SceneView, p: &pack::Packed, repeat: usize, singl
         }
     }
     let n_feelers: usize = feelers.iter().map(|f| f.3.count_ones() as usize).sum();
-    let best = |f: &mut dyn FnMut() -> u64| {
-        let mut t = f64::INFINITY;
-        let mut n = 0;
-        for _ in 0..repeat {
-            let t0 = Instant::now();
-            n = f();
-            t = t.min(t0.elapsed().as_secs_f64());
-        }
-        (t, n)
-    };
+    let best = |f: &mut dyn FnMut() -> u64| best_of(repeat, f);
     let (te, hits) = best(&mut || {
         let mut work = Work::default();
         eye.iter()

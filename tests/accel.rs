@@ -17,6 +17,8 @@
 //! distance, and images bit for bit; scenes of coincident copies check
 //! the ties themselves.
 
+mod common;
+
 use glam::DVec3;
 use proptest::prelude::*;
 use std::path::PathBuf;
@@ -29,21 +31,7 @@ use whitted::trace::math::{v3, Ray, V3};
 use whitted::trace::query::Work;
 use whitted::trace::SceneView;
 
-fn v(x: f64, y: f64, z: f64) -> DVec3 {
-    DVec3::new(x, y, z)
-}
-
-/// xorshift64: deterministic scenes from a seed.
-struct Rng(u64);
-
-impl Rng {
-    fn f(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use common::{v, Rng};
 
 /// `count` random primitives in [−5, 5]³ (clustered when `clustered`: a
 /// few dense clumps, the case the BVH is for), a floor polygon, and four

@@ -311,6 +311,11 @@ fn assert_within(name: &str, cpu: &Frame, gpu: &Frame, tol: &Tolerance) {
     }
 }
 
+/// A frame's pixels as bit patterns, to compare bit for bit.
+fn bits(f: &Frame) -> Vec<u32> {
+    f.pixels.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
 fn scene_files() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(common::repo().join("scenes"))
         .unwrap()
@@ -519,13 +524,6 @@ fn tiles_and_workgroups_do_not_change_the_image() {
                 },
             )
             .unwrap();
-        let bits = |f: &Frame| {
-            f.pixels
-                .iter()
-                .flatten()
-                .map(|v| v.to_bits())
-                .collect::<Vec<_>>()
-        };
         assert!(
             bits(&f) == bits(&base),
             "tile {tile}, workgroup {wg:?}, staging {staging} changed the image"
@@ -579,13 +577,6 @@ fn prim_layouts_do_not_change_the_image() {
                 &|_, _| {},
             )
             .unwrap();
-        let bits = |f: &Frame| {
-            f.pixels
-                .iter()
-                .flatten()
-                .map(|v| v.to_bits())
-                .collect::<Vec<_>>()
-        };
         assert!(bits(&aos) == bits(&soa), "{name}: the layouts differ");
         assert_eq!(aos.stats, soa.stats, "{name}");
         if exact {
@@ -1236,13 +1227,6 @@ fn a_device_fault_finishes_on_the_cpu_mirror() {
     let Some(shared) = common::gpu() else { return };
     let p = small_showcase();
     let cpu_frame = cpu::render(&p, &|_, _| {});
-    let bits = |f: &Frame| {
-        f.pixels
-            .iter()
-            .flatten()
-            .map(|v| v.to_bits())
-            .collect::<Vec<_>>()
-    };
     for fault in [Fault::DeviceLost, Fault::OutOfDeviceMemory] {
         let opts = fault_options(fault);
         let g = Gpu::new(&opts).unwrap();

@@ -28,21 +28,7 @@ use whitted::trace::query::Work;
 use whitted::trace::sample::eye_dir;
 use whitted::trace::SceneView;
 
-fn v(x: f64, y: f64, z: f64) -> DVec3 {
-    DVec3::new(x, y, z)
-}
-
-/// xorshift64: deterministic scenes from a seed.
-struct Rng(u64);
-
-impl Rng {
-    fn f(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use common::{v, Rng};
 
 /// `count` primitives of every bounded kind in four clumps around the
 /// origin, a floor polygon (in the BVH too) and an unbounded plane far

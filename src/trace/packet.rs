@@ -270,69 +270,19 @@ fn sphere_lanes<F: Real, const P: usize>(
     out
 }
 
-/// For each child of `n` the interval test lets through (`cand`), the
-/// lanes of `m` whose own ray enters its box within 0..their `tmax`, and
-/// the least of their entry distances: `bvh_entries`' arithmetic, ray by
-/// ray (the rays share each axis's sign, so its near plane is the same
-/// for all: one vector operation per axis and child).
+/// Where each lane's ray enters and leaves child `k`'s box of `n` within
+/// 0..its `tmax` (entered when the first is at most the second):
+/// `bvh_entries`' arithmetic, ray by ray (the rays share each axis's
+/// sign, so its near plane is the same for all: one vector operation per
+/// axis).
 #[inline(always)]
-fn lanes_entering<F: Real, const P: usize>(
-    n: &BvhNode,
-    cand: u32,
-    lw: &Lanewise<F, P>,
-    neg: &[bool; 3],
-    tmax: &[F; P],
-    m: Lanes,
-) -> ([Lanes; W], [F; W]) {
-    let mut t0 = [[F::zero(); P]; W];
-    let mut t1 = [*tmax; W];
-    for i in 0..3 {
-        let (near, far) = if neg[i] {
-            (&n.hi[i], &n.lo[i])
-        } else {
-            (&n.lo[i], &n.hi[i])
-        };
-        for k in 0..W {
-            let (near, far) = (F::of(near[k]), F::of(far[k]));
-            for j in 0..P {
-                let tn = (near - lw.o[i][j]) * lw.inv[i][j];
-                let tf = (far - lw.o[i][j]) * lw.inv[i][j];
-                t0[k][j] = if tn > t0[k][j] { tn } else { t0[k][j] };
-                t1[k][j] = if tf < t1[k][j] { tf } else { t1[k][j] };
-            }
-        }
-    }
-    let mut tl = [0 as Lanes; W];
-    let mut te = [F::infinity(); W];
-    for k in 0..W {
-        let mut enter = 0;
-        let mut least = F::infinity();
-        for j in 0..P {
-            let e = t0[k][j] <= t1[k][j];
-            enter |= (e as u32) << j;
-            let v = if e { t0[k][j] } else { F::infinity() };
-            least = if v < least { v } else { least };
-        }
-        // Only the lanes asked, under the children the bound let through;
-        // `least` may be a lane's outside `m`: a lower bound all the same.
-        tl[k] = if (cand >> k) & 1 == 1 { enter & m } else { 0 };
-        te[k] = least;
-    }
-    (tl, te)
-}
-
-/// The lanes of `m` whose own ray enters child `k` of `n` within
-/// 0..their `tmax` (`lanes_entering` for one child: a leaf's lanes,
-/// asked again when the walk reaches it with bounds that shrank).
-#[inline(always)]
-fn child_lanes<F: Real, const P: usize>(
+fn slab_lanes<F: Real, const P: usize>(
     n: &BvhNode,
     k: usize,
     lw: &Lanewise<F, P>,
     neg: &[bool; 3],
     tmax: &[F; P],
-    m: Lanes,
-) -> Lanes {
+) -> ([F; P], [F; P]) {
     let mut t0 = [F::zero(); P];
     let mut t1 = *tmax;
     for i in 0..3 {
@@ -348,6 +298,49 @@ fn child_lanes<F: Real, const P: usize>(
             t1[j] = if tf < t1[j] { tf } else { t1[j] };
         }
     }
+    (t0, t1)
+}
+
+/// For each child of `n` the interval test lets through (`cand`), the
+/// lanes of `m` whose own ray enters its box, and the least of their
+/// entry distances.
+#[inline(always)]
+fn lanes_entering<F: Real, const P: usize>(
+    n: &BvhNode,
+    mut cand: u32,
+    lw: &Lanewise<F, P>,
+    neg: &[bool; 3],
+    tmax: &[F; P],
+    m: Lanes,
+) -> ([Lanes; W], [F; W]) {
+    let mut tl = [0 as Lanes; W];
+    let mut te = [F::infinity(); W];
+    while cand != 0 {
+        let k = cand.trailing_zeros() as usize;
+        cand &= cand - 1;
+        let (t0, t1) = slab_lanes(n, k, lw, neg, tmax);
+        for j in 0..P {
+            if t0[j] <= t1[j] && (m >> j) & 1 == 1 {
+                tl[k] |= 1 << j;
+                te[k] = te[k].min(t0[j]);
+            }
+        }
+    }
+    (tl, te)
+}
+
+/// The lanes of `m` whose own ray enters child `k` of `n` (a leaf's
+/// lanes, asked again when the walk reaches it with bounds that shrank).
+#[inline(always)]
+fn child_lanes<F: Real, const P: usize>(
+    n: &BvhNode,
+    k: usize,
+    lw: &Lanewise<F, P>,
+    neg: &[bool; 3],
+    tmax: &[F; P],
+    m: Lanes,
+) -> Lanes {
+    let (t0, t1) = slab_lanes(n, k, lw, neg, tmax);
     let mut enter = 0;
     for j in 0..P {
         enter |= ((t0[j] <= t1[j]) as u32) << j;

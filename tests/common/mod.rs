@@ -1,5 +1,5 @@
-//! Shared by the GPU test files: one device per test binary, the skip/fail
-//! policy, and the validation-error check.
+//! Shared by the test files: one device per test binary, the skip/fail
+//! policy, the validation-error check, and random scenes' helpers.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
@@ -135,5 +135,23 @@ pub fn small(w: u32, h: u32) -> Settings {
         width: Some(w),
         height: Some(h),
         ..Default::default()
+    }
+}
+
+/// A point or vector, shorter.
+pub fn v(x: f64, y: f64, z: f64) -> glam::DVec3 {
+    glam::DVec3::new(x, y, z)
+}
+
+/// xorshift64: deterministic scenes from a seed.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The next value in [0, 1).
+    pub fn f(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 }
