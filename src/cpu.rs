@@ -259,7 +259,7 @@ fn tile_packets<F: Real, const P: usize>(
 /// Up to `P` eye rays through `samples`' image positions traced as a
 /// packet: their closest hits together, then each ray's tree on its own
 /// (`trace_ray_from`). Counts the eye rays. (Their eye hits' feelers go
-/// one by one: as packets they cost 5-20 % more; BENCHMARKS.md.)
+/// one by one: as packets they win nothing; BENCHMARKS.md.)
 fn trace_packet<F: Real, const P: usize>(
     s: &SceneView,
     samples: &[(usize, (f32, f32))],
