@@ -149,6 +149,23 @@ macro_rules! fields {
 /// size_of. A padding slip or reordering on either side fails here.
 #[test]
 fn shader_layout_matches_rust() {
+    // The shader reads a primitive as four 16-byte words (load_prim,
+    // shaders/layout.glsl): the header's four words, then a, b and c.
+    assert_eq!(
+        fields!(Prim: kind_mat, data, cell_lo, cell_hi, a, b, c),
+        [
+            ("kind_mat", 0),
+            ("data", 4),
+            ("cell_lo", 8),
+            ("cell_hi", 12),
+            ("a", 16),
+            ("b", 32),
+            ("c", 48)
+        ]
+        .map(|(n, o)| (n.to_string(), o))
+        .to_vec()
+    );
+    assert_eq!(size_of::<Prim>(), 64);
     type Members = Vec<(String, u32)>;
     let expect: Vec<(&str, Members, usize)> = vec![
         (
@@ -156,11 +173,6 @@ fn shader_layout_matches_rust() {
             fields!(Globals: cam_right, cam_up, cam_forward, background, ambient, grid_min,
                     grid_max, grid_cell, grid_dims, counts, image, trace, params, flags),
             size_of::<Globals>(),
-        ),
-        (
-            "Prim",
-            fields!(Prim: kind_mat, data, cell_lo, cell_hi, a, b, c),
-            size_of::<Prim>(),
         ),
         (
             "Material",
@@ -191,7 +203,8 @@ fn shader_layout_matches_rust() {
             );
         }
         let arrays = [
-            (1, "Prim", size_of::<Prim>()),
+            // The primitives as 16-byte words (load_prim, layout.glsl).
+            (1, "", 16),
             (2, "", 16),
             (3, "Material", size_of::<Material>()),
             (4, "Light", size_of::<Light>()),

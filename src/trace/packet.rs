@@ -2,8 +2,8 @@
 //! rays"): `P` rays walk the BVH together. CPU only: the shader walks one
 //! ray per invocation, and the GPU's lanes are its packets. The renderer
 //! traces eye rays in packets (`cpu::render_packets`, `--packet`); feelers
-//! in packets are measured (`examples/rays_per_core.rs --packet`) and
-//! slower than alone, so the renderer casts them one by one.
+//! in packets are measured (`examples/rays_per_core.rs --packet`) and no
+//! faster than alone, so the renderer casts them one by one.
 //!
 //! The walk is the single ray's (`bvh::bvh_walk`: nearer children first
 //! for the closest hit, lane order for feelers), with the packet's lanes
@@ -54,9 +54,6 @@ const W: usize = BVH_WIDTH as usize;
 /// test decides at every node too (BENCHMARKS.md, "Packets of rays").
 const EXACT_EYE: bool = false;
 const EXACT_FEELERS: bool = true;
-
-/// The packet widths the renderer offers (`--packet`): 1 is a ray alone.
-pub const PACKET_WIDTHS: [u32; 3] = [1, 4, 8];
 
 /// The set of lanes of a packet, as bits (lane j: bit j).
 pub type Lanes = u32;
