@@ -21,10 +21,9 @@ mod common;
 
 use glam::DVec3;
 use proptest::prelude::*;
-use std::path::PathBuf;
 use whitted::pack::octree::Walk;
 use whitted::pack::{self, Accel, Packed, Settings, Shadows};
-use whitted::scene::{Camera, Light, Material, Object, Scene, Shape};
+use whitted::scene::{Light, Object, Scene, Shape};
 use whitted::trace::accel::{closest_hit, closest_hit_brute, transmittance, transmittance_brute};
 use whitted::trace::intersect::RayPre;
 use whitted::trace::math::{v3, Ray, V3};
@@ -88,48 +87,7 @@ fn random_scene(seed: u64, count: usize, clustered: bool) -> Scene {
             material: (i % 4) as u32,
         });
     }
-    let glass = |kt: f64| Material {
-        name: format!("glass {kt}"),
-        kt: DVec3::splat(kt),
-        ior: 1.3,
-        ..Material::default()
-    };
-    Scene {
-        camera: Camera {
-            from: v(0.0, -20.0, 3.0),
-            at: DVec3::ZERO,
-            up: v(0.0, 0.0, 1.0),
-            fov: 45.0,
-            width: 24,
-            height: 18,
-        },
-        background: v(0.2, 0.3, 0.5),
-        ambient: DVec3::splat(0.1),
-        lights: vec![
-            Light {
-                position: v(8.0, -10.0, 12.0),
-                color: DVec3::ONE,
-                falloff: [1.0, 0.0, 0.0],
-            },
-            Light {
-                position: v(-9.0, 4.0, 6.0),
-                color: DVec3::splat(0.5),
-                falloff: [1.0, 0.0, 0.0],
-            },
-        ],
-        materials: vec![
-            Material::default(),
-            Material {
-                name: "mirror".into(),
-                kr: DVec3::splat(0.5),
-                ..Material::default()
-            },
-            glass(0.5),
-            glass(0.25),
-        ],
-        objects,
-        source: PathBuf::from("random"),
-    }
+    common::random_scene_frame(24, 18, [DVec3::splat(0.5), DVec3::splat(0.25)], objects)
 }
 
 fn pack_with(s: &Scene, accel: Accel) -> Packed {

@@ -15,11 +15,10 @@ mod common;
 
 use glam::DVec3;
 use proptest::prelude::*;
-use std::path::PathBuf;
 use whitted::constants::SAMPLING_CORNERS;
 use whitted::cpu::render_packets;
 use whitted::pack::{self, Accel, Packed, Sampling, Settings};
-use whitted::scene::{Camera, Light, Material, Object, Scene, Shape};
+use whitted::scene::{Material, Object, Scene, Shape};
 use whitted::trace::accel::{closest_hit, transmittance};
 use whitted::trace::intersect::RayPre;
 use whitted::trace::math::{v3, Ray, V3};
@@ -95,48 +94,7 @@ fn scene(seed: u64, count: usize) -> Scene {
             material: (i % 4) as u32,
         });
     }
-    let glass = |kt: DVec3| Material {
-        name: format!("glass {kt}"),
-        kt,
-        ior: 1.3,
-        ..Material::default()
-    };
-    Scene {
-        camera: Camera {
-            from: v(0.0, -20.0, 3.0),
-            at: DVec3::ZERO,
-            up: v(0.0, 0.0, 1.0),
-            fov: 45.0,
-            width: 37,
-            height: 23,
-        },
-        background: v(0.2, 0.3, 0.5),
-        ambient: DVec3::splat(0.1),
-        lights: vec![
-            Light {
-                position: v(8.0, -10.0, 12.0),
-                color: DVec3::ONE,
-                falloff: [1.0, 0.0, 0.0],
-            },
-            Light {
-                position: v(-9.0, 4.0, 6.0),
-                color: DVec3::splat(0.5),
-                falloff: [1.0, 0.0, 0.0],
-            },
-        ],
-        materials: vec![
-            Material::default(),
-            Material {
-                name: "mirror".into(),
-                kr: DVec3::splat(0.5),
-                ..Material::default()
-            },
-            glass(v(0.3, 0.7, 0.3)),
-            glass(v(0.7, 0.3, 0.7)),
-        ],
-        objects,
-        source: PathBuf::from("random"),
-    }
+    common::random_scene_frame(37, 23, [v(0.3, 0.7, 0.3), v(0.7, 0.3, 0.7)], objects)
 }
 
 fn pack_bvh(s: &Scene, settings: Settings) -> Packed {

@@ -155,3 +155,59 @@ impl Rng {
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 }
+
+/// The random test scenes' frame (tests/accel.rs, tests/packets.rs): a
+/// camera at (0, −20, 3) looking at the origin, `width` × `height`, two
+/// lights, and four materials: matte, mirror, and glass letting through
+/// `kt[0]` and `kt[1]` (per channel, index 1.3).
+pub fn random_scene_frame(
+    width: u32,
+    height: u32,
+    kt: [glam::DVec3; 2],
+    objects: Vec<whitted::scene::Object>,
+) -> whitted::scene::Scene {
+    use glam::DVec3;
+    use whitted::scene::{Camera, Light, Material, Scene};
+    let glass = |kt: DVec3| Material {
+        name: format!("glass {kt}"),
+        kt,
+        ior: 1.3,
+        ..Material::default()
+    };
+    Scene {
+        camera: Camera {
+            from: v(0.0, -20.0, 3.0),
+            at: DVec3::ZERO,
+            up: v(0.0, 0.0, 1.0),
+            fov: 45.0,
+            width,
+            height,
+        },
+        background: v(0.2, 0.3, 0.5),
+        ambient: DVec3::splat(0.1),
+        lights: vec![
+            Light {
+                position: v(8.0, -10.0, 12.0),
+                color: DVec3::ONE,
+                falloff: [1.0, 0.0, 0.0],
+            },
+            Light {
+                position: v(-9.0, 4.0, 6.0),
+                color: DVec3::splat(0.5),
+                falloff: [1.0, 0.0, 0.0],
+            },
+        ],
+        materials: vec![
+            Material::default(),
+            Material {
+                name: "mirror".into(),
+                kr: DVec3::splat(0.5),
+                ..Material::default()
+            },
+            glass(kt[0]),
+            glass(kt[1]),
+        ],
+        objects,
+        source: std::path::PathBuf::from("random"),
+    }
+}
