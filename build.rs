@@ -84,6 +84,7 @@ fn const_f32(name: &str) -> f32 {
     match name {
         "EPS_OFFSET_REL" => EPS_OFFSET_REL,
         "GRID_DENSITY" => GRID_DENSITY,
+        "BVH_EXIT_WIDEN" => BVH_EXIT_WIDEN,
         n => panic!("build.rs: add {n} to const_f32"),
     }
 }

@@ -36,7 +36,7 @@ bvec4 bvh_entries(BvhNode n, Ray ray, RayPre pre, float tmax, out vec4 te) {
         vec4 near = inv >= 0.0 ? n.lo[i] : n.hi[i];
         vec4 far = inv >= 0.0 ? n.hi[i] : n.lo[i];
         PRECISE vec4 tn = (near - o) * inv;
-        PRECISE vec4 tf = (far - o) * inv;
+        PRECISE vec4 tf = (far - o) * inv * BVH_EXIT_WIDEN;
         t0 = mix(t0, tn, greaterThan(tn, t0));
         t1 = mix(t1, tf, lessThan(tf, t1));
     }

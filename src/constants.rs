@@ -29,6 +29,13 @@ pub const GRID_DENSITY: f32 = 3.0;
 pub const BVH_STACK_SIZE: u32 = 64;
 /// Children per BVH node (`pack::layout::BvhNode`).
 pub const BVH_WIDTH: u32 = 4;
+/// A BVH box's exit distance is widened by this factor (≥ 1 + 2γ₃, γ₃ =
+/// 3u/(1 − 3u), u = 2⁻²⁴: Ize, "Robust BVH Ray Traversal", 2013), so that
+/// the rounding of (plane − origin)·(1/d) never makes a ray that crosses a
+/// box miss it, even from an origin so far away that the subtraction
+/// rounds the box's size off (a feeler from a giant sphere 7·10¹⁰ away
+/// crossing a 10-unit polygon missed it before; docs/method.md).
+pub const BVH_EXIT_WIDEN: f32 = 1.000_000_5;
 /// Acceleration structures (`Globals::flags.y`): which one the tracers walk.
 pub const ACCEL_GRID: u32 = 0;
 pub const ACCEL_BVH: u32 = 1;

@@ -401,6 +401,20 @@ fn render_small(s: &Scene, settings: &Settings) -> Outcome {
         }
     };
     let f = crate::cpu::render(&p, &|_, _| {});
+    // Under the BVH, eye rays in packets must give the single rays'
+    // image and ray counts, bit for bit (docs/method.md, "Packets of rays").
+    if p.structure() == crate::pack::Accel::Bvh {
+        let packed = crate::cpu::render_packets::<f32>(&p, 8, &|_, _| {});
+        let bits = |f: &crate::cpu::Frame| {
+            f.pixels
+                .iter()
+                .flatten()
+                .map(|c| c.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert!(bits(&packed) == bits(&f), "packets of 8 change the image");
+        assert_eq!(packed.stats, f.stats, "packets of 8 change the ray counts");
+    }
     assert_eq!(
         f.pixels.len() as u64,
         f.width as u64 * f.height as u64,

@@ -15,7 +15,7 @@ use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
-use crate::constants::{BVH_STACK_SIZE, BVH_WIDTH};
+use crate::constants::{BVH_EXIT_WIDEN, BVH_STACK_SIZE, BVH_WIDTH};
 use crate::pack::layout::BvhNode;
 
 const W: usize = BVH_WIDTH as usize;
@@ -46,7 +46,7 @@ pub fn bvh_entries<F: Real>(n: &BvhNode, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
         };
         for k in 0..W {
             let tn = (F::of(near[k]) - o) * inv;
-            let tf = (F::of(far[k]) - o) * inv;
+            let tf = (F::of(far[k]) - o) * inv * F::of(BVH_EXIT_WIDEN);
             if tn > t0[k] {
                 t0[k] = tn;
             }

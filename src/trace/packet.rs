@@ -41,7 +41,8 @@ use super::math::{Ray, Real, V3};
 use super::query::{query_hit, query_prim, query_unbounded, Query, Work};
 use super::SceneView;
 use crate::constants::{
-    ACCEL_BVH, BVH_STACK_SIZE, BVH_WIDTH, KIND_SPHERE, KIND_TRIANGLE, SHADOW_CACHE_LIGHTS,
+    ACCEL_BVH, BVH_EXIT_WIDEN, BVH_STACK_SIZE, BVH_WIDTH, KIND_SPHERE, KIND_TRIANGLE,
+    SHADOW_CACHE_LIGHTS,
 };
 use crate::pack::layout::BvhNode;
 
@@ -152,7 +153,7 @@ fn packet_entries<F: Real>(n: &BvhNode, iv: &Interval<F>, tmax: F) -> ([F; W], u
             let xn = F::of(near[k]) - on;
             let xf = F::of(far[k]) - of;
             let tn = (xn * a).min(xn * b);
-            let tf = (xf * a).max(xf * b);
+            let tf = (xf * a).max(xf * b) * F::of(BVH_EXIT_WIDEN);
             if tn > t0[k] {
                 t0[k] = tn;
             }
@@ -290,7 +291,7 @@ fn slab_lanes<F: Real, const P: usize>(
         };
         for j in 0..P {
             let tn = (near - lw.o[i][j]) * lw.inv[i][j];
-            let tf = (far - lw.o[i][j]) * lw.inv[i][j];
+            let tf = (far - lw.o[i][j]) * lw.inv[i][j] * F::of(BVH_EXIT_WIDEN);
             t0[j] = if tn > t0[j] { tn } else { t0[j] };
             t1[j] = if tf < t1[j] { tf } else { t1[j] };
         }
