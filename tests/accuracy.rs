@@ -166,5 +166,7 @@ fn the_chart_measures_each_knob_against_the_reference() {
         .map(|r| r[col("seconds_median")].parse().unwrap())
         .collect();
     let fastest = (0..t.len()).min_by(|&a, &b| t[a].total_cmp(&t[b])).unwrap();
-    assert!(pareto[fastest]);
+    // Of points tied at the least time, the most accurate is on the front
+    // (the others are dominated by it).
+    assert!((0..t.len()).any(|i| t[i] == t[fastest] && pareto[i]));
 }
