@@ -35,8 +35,8 @@ pub struct Frame {
 }
 
 /// The packet width `render` traces eye rays in by default (`--packet`;
-/// docs/method.md, "Packets of rays": 2-6 % faster than single rays on
-/// the SPD scenes under the BVH).
+/// docs/method.md, "Packets of rays"; BENCHMARKS.md: whole SPD renders
+/// 0-17 % faster than with single rays under the BVH).
 pub const DEFAULT_PACKET: u32 = 8;
 
 /// Renders on all cores of the current rayon pool, in f32 (the GPU's twin).
