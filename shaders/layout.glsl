@@ -118,7 +118,10 @@ const bool STRUCTURE_ANY = STRUCTURE == 0xFFFFFFFFu;
 
 // Bit 9: the primitives lie as a structure of arrays (src/gpu/mod.rs,
 // PrimLayout; the default: as structures).
-const bool PRIMS_SOA = !STRUCTURE_ANY && (STRUCTURE & 512u) != 0u;
+// Never under STRUCTURE_ANY, whose bit 31 no key sets. (One comparison,
+// not `&&`: glslang evaluates a short-circuit global initializer with
+// run-time code, which it put after main's return in wavefront.comp.)
+const bool PRIMS_SOA = (STRUCTURE & 0x80000200u) == 512u;
 
 // Primitive i, from either layout (bit moves only: the same values).
 Prim load_prim(uint i) {

@@ -17,14 +17,10 @@ layout(local_size_x = 8, local_size_y = 8, local_size_x_id = 0, local_size_y_id 
 #include "layout.glsl"
 #include "sample.glsl"
 #include "trace.glsl"
+#include "counts.glsl"
 
 // One vec4 per lattice point (rgb, w = 1), index y * lattice_width + x.
 layout(set = 0, binding = 7, std430) writeonly buffer Out { vec4 samples[]; };
-// [0] eye, [1] eye_hit, [2] reflect, [3] refract, [4] shadow, [5] loops
-// the device cut short (grid.glsl: loops_cut); the host zeroes and reads
-// them per tile.
-layout(set = 0, binding = 8, std430) buffer Counters { uint counts[12]; };
-
 // tile.xy: lattice origin of this tile; tile.zw: its width and height.
 // order.x: the workgroup order's stride (src/gpu/dispatch.rs,
 // scatter_stride; 1: plain order).
@@ -78,32 +74,5 @@ void main() {
         samples[y * lw + x] = vec4(c, 1.0);
     }
     // Every invocation (in range or not) reaches the reductions.
-    uint eye = subgroupAdd(stats.eye);
-    uint eye_hit = subgroupAdd(stats.eye_hit);
-    uint reflect_ = subgroupAdd(stats.reflect);
-    uint refract_ = subgroupAdd(stats.refract);
-    uint shadow = subgroupAdd(stats.shadow);
-    uint cut = subgroupAdd(loops_cut);
-    uint tests = subgroupAdd(work_tests);
-    uint cells = subgroupAdd(work_cells);
-    uint nodes = subgroupAdd(work_nodes);
-    if (subgroupElect()) {
-        atomicAdd(counts[0], eye);
-        atomicAdd(counts[1], eye_hit);
-        atomicAdd(counts[2], reflect_);
-        atomicAdd(counts[3], refract_);
-        atomicAdd(counts[4], shadow);
-        atomicAdd(counts[5], cut);
-        // The work counters are 64-bit: low word, and a carry into the
-        // high one when the low one wraps.
-        if (atomicAdd(counts[6], tests) > 0xFFFFFFFFu - tests) {
-            atomicAdd(counts[7], 1u);
-        }
-        if (atomicAdd(counts[8], cells) > 0xFFFFFFFFu - cells) {
-            atomicAdd(counts[9], 1u);
-        }
-        if (atomicAdd(counts[10], nodes) > 0xFFFFFFFFu - nodes) {
-            atomicAdd(counts[11], 1u);
-        }
-    }
+    flush_counts();
 }

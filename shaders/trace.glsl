@@ -36,17 +36,122 @@ vec3 offset_absorption(vec3 sigma, float eps, float cosn) {
     return vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
 }
 
-// Intensity arriving along an eye ray.
-vec3 trace_ray(Ray ray) {
-    uint max_depth = g.trace.x;
+// The contribution of a ray that hits nothing: the background, weighted,
+// unless it escapes inside an absorbing medium (exp(-sigma * inf) = 0):
+// false then.
+bool miss_contribution(Entry e, out vec3 c) {
+    PRECISE vec3 c_ = e.w * g.background.xyz;
+    c = c_;
+    return max_elem(e.medium) <= 0.0;
+}
+
+// What a ray's closest hit shows: the surface, its material, and the
+// weight the ray arrives with (after the medium's absorption).
+struct Surface {
+    Material mat;
+    vec3 p;
+    vec3 n;        // shading normal facing the viewer
+    vec3 ngf;      // geometric normal facing the viewer
+    bool front;    // the viewer is outside the surface
+    vec3 w;        // the ray's weight at the hit
+    bool weighted; // w > 0: a ray of weight 0 (SPD counting) adds nothing
+};
+
+Surface surface_at(Entry e, Hit h, uint pi) {
+    PRECISE vec3 w = e.w;
+    if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
+        PRECISE vec3 x = -e.medium * h.t;
+        w = w * vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
+    }
+    Prim prim = load_prim(pi);
+    Material mat = materials[prim_material(prim)];
+    PRECISE vec3 p = e.o + e.d * h.t;
+    vec3 ng;
+    vec3 ns;
+    normals(prim, p, h, ng, ns);
+    bool front = dot3(e.d, ng) < 0.0;
+    vec3 n = front ? ns : -ns;
+    vec3 ngf = front ? ng : -ng;
+    vec3 wv = w;
+    vec3 pv = p;
+    return Surface(mat, pv, n, ngf, front, wv, max_elem(wv) > 0.0);
+}
+
+// The rays a hit spawns (none at the depth limit): bit 0 of the result,
+// the refracted ray tr; bit 1, the reflected ray rf. Counts them.
+uint spawn(Entry e, Surface s, out Entry tr, out Entry rf) {
+    uint kids = 0u;
+    if (e.depth >= g.trace.x) {
+        return kids;
+    }
     float min_weight = g.params.x;
     float eps = g.params.y;
-    vec3 background = g.background.xyz;
-    bool spd = spd_counting();
+    PRECISE vec3 refl = s.mat.kr.xyz;
+    vec3 kt = s.mat.kt.xyz;
+    if (HAS_REFRACT && has(FEAT_REFRACT) && max_elem(kt) > 0.0) {
+        float ior = s.mat.kr.w;
+        PRECISE float eta = s.front ? 1.0 / ior : ior;
+        vec3 t;
+        if (!refract_dir(e.d, s.n, eta, t)) {
+            // Total internal reflection: the transmitted share reflects.
+            refl = refl + kt;
+        } else {
+            PRECISE vec3 wt = s.w * kt;
+            vec3 medium = s.front ? s.mat.absorb.xyz : vec3(0.0);
+            if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(medium) > 0.0) {
+                wt = wt * offset_absorption(medium, eps, dot3(s.ngf, t));
+            }
+            if (max_elem(wt) >= min_weight) {
+                stats.refract += 1u;
+                PRECISE vec3 o = s.p - s.ngf * eps;
+                tr = Entry(o, t, wt, medium, e.depth + 1u);
+                kids |= 1u;
+            }
+        }
+    }
+    // FEAT_REFLECT is set whenever a material has k_r or k_t > 0, the
+    // only ways refl can be positive (or SPD counting spawn a ray):
+    // the guard changes nothing.
+    if (HAS_REFLECT && (max_elem(refl) > 0.0 || (spd_counting() && max_elem(kt) > 0.0))) {
+        PRECISE vec3 wr = s.w * refl;
+        vec3 dr = reflect_dir(e.d, s.n);
+        if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
+            wr = wr * offset_absorption(e.medium, eps, dot3(s.ngf, dr));
+        }
+        if (max_elem(wr) >= min_weight) {
+            stats.reflect += 1u;
+            PRECISE vec3 o = s.p + s.ngf * eps;
+            rf = Entry(o, dr, wr, e.medium, e.depth + 1u);
+            kids |= 2u;
+        }
+    }
+    return kids;
+}
+
+// a + b, w·b, and a + w·b, exact. (Functions, so that glslang's `precise`
+// propagation stops at the call: following a precise sum back into a
+// Surface that surface_at returned crashes glslang 11-14.)
+vec3 add_exact(vec3 a, vec3 b) {
+    PRECISE vec3 r = a + b;
+    return r;
+}
+
+vec3 mul_exact(vec3 w, vec3 b) {
+    PRECISE vec3 r = w * b;
+    return r;
+}
+
+vec3 add_weighted(vec3 a, vec3 w, vec3 b) {
+    return add_exact(a, mul_exact(w, b));
+}
+
+// Intensity arriving along an eye ray. (The wavefront kernel,
+// shaders/wavefront.glsl, runs the same steps as separate dispatches.)
+vec3 trace_ray(Ray ray) {
     Entry stack[STACK_SIZE];
     stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
     uint sp = 1u;
-    PRECISE vec3 color = vec3(0.0);
+    vec3 color = vec3(0.0);
     while (sp > 0u) {
         sp -= 1u;
         Entry e = stack[sp];
@@ -55,77 +160,32 @@ vec3 trace_ray(Ray ray) {
         Hit h;
         uint pi;
         if (!closest_hit(r, pre, INF, h, pi)) {
-            // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
-            if (max_elem(e.medium) <= 0.0) {
-                color = color + e.w * background;
+            vec3 c;
+            if (miss_contribution(e, c)) {
+                color = add_exact(color, c);
             }
             continue;
         }
         if (e.depth == 0u) {
             stats.eye_hit += 1u;
         }
-        PRECISE vec3 w = e.w;
-        if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
-            PRECISE vec3 x = -e.medium * h.t;
-            w = w * vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
+        Surface s = surface_at(e, h, pi);
+        vec3 local_ = shade(s.mat, s.p, e.d, s.n, s.ngf, s.front, s.weighted);
+        if (s.weighted) {
+            color = add_weighted(color, s.w, local_);
         }
-        Prim prim = load_prim(pi);
-        Material mat = materials[prim_material(prim)];
-        PRECISE vec3 p = e.o + e.d * h.t;
-        vec3 ng;
-        vec3 ns;
-        normals(prim, p, h, ng, ns);
-        bool front = dot3(e.d, ng) < 0.0;
-        vec3 n = front ? ns : -ns;
-        vec3 ngf = front ? ng : -ng;
-        // A ray of weight 0 (SPD counting) adds nothing: its feelers are
-        // counted, not traced, and its local intensity is not added.
-        bool weighted = max_elem(w) > 0.0;
-        vec3 local_ = shade(mat, p, e.d, n, ngf, front, weighted);
-        if (weighted) {
-            color = color + w * local_;
+        Entry tr;
+        Entry rf;
+        uint kids = spawn(e, s, tr, rf);
+        // The refracted ray below the reflected one: reflection is walked
+        // first.
+        if ((kids & 1u) != 0u) {
+            stack[sp] = tr;
+            sp += 1u;
         }
-        if (e.depth >= max_depth) {
-            continue;
-        }
-        PRECISE vec3 refl = mat.kr.xyz;
-        vec3 kt = mat.kt.xyz;
-        if (HAS_REFRACT && has(FEAT_REFRACT) && max_elem(kt) > 0.0) {
-            float ior = mat.kr.w;
-            PRECISE float eta = front ? 1.0 / ior : ior;
-            vec3 t;
-            if (!refract_dir(e.d, n, eta, t)) {
-                // Total internal reflection: the transmitted share reflects.
-                refl = refl + kt;
-            } else {
-                PRECISE vec3 wt = w * kt;
-                vec3 medium = front ? mat.absorb.xyz : vec3(0.0);
-                if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(medium) > 0.0) {
-                    wt = wt * offset_absorption(medium, eps, dot3(ngf, t));
-                }
-                if (max_elem(wt) >= min_weight) {
-                    stats.refract += 1u;
-                    PRECISE vec3 o = p - ngf * eps;
-                    stack[sp] = Entry(o, t, wt, medium, e.depth + 1u);
-                    sp += 1u;
-                }
-            }
-        }
-        // FEAT_REFLECT is set whenever a material has k_r or k_t > 0, the
-        // only ways refl can be positive (or SPD counting spawn a ray):
-        // the guard changes nothing.
-        if (HAS_REFLECT && (max_elem(refl) > 0.0 || (spd && max_elem(kt) > 0.0))) {
-            PRECISE vec3 wr = w * refl;
-            vec3 dr = reflect_dir(e.d, n);
-            if (HAS_ABSORB && has(FEAT_ABSORB) && max_elem(e.medium) > 0.0) {
-                wr = wr * offset_absorption(e.medium, eps, dot3(ngf, dr));
-            }
-            if (max_elem(wr) >= min_weight) {
-                stats.reflect += 1u;
-                PRECISE vec3 o = p + ngf * eps;
-                stack[sp] = Entry(o, dr, wr, e.medium, e.depth + 1u);
-                sp += 1u;
-            }
+        if ((kids & 2u) != 0u) {
+            stack[sp] = rf;
+            sp += 1u;
         }
     }
     if (sp > 0u) {
