@@ -147,10 +147,21 @@ type Defines = &'static [(&'static str, Option<&'static str>)];
 
 /// The kernels built from one `.comp`: (suffix of the output's stem,
 /// `#define`s). Only `render.comp` has a fast variant; `probe.comp` tests
-/// the twins bit for bit and stays exact (it refuses WHITTED_FAST_MATH).
+/// the twins bit for bit and stays exact (it refuses WHITTED_FAST_MATH);
+/// `wavefront.comp` is built once per stage.
 fn variants(stem: &str) -> &'static [(&'static str, Defines)] {
     match stem {
         "render" => &[("", &[]), ("_fast", &[("WHITTED_FAST_MATH", Some("1"))])],
+        // One module per stage of the wavefront kernel (WF_STAGE; the
+        // stage numbers are wavefront.comp's).
+        "wavefront" => &[
+            ("_generate", &[("WF_STAGE", Some("0"))]),
+            ("_extend", &[("WF_STAGE", Some("1"))]),
+            ("_shade", &[("WF_STAGE", Some("2"))]),
+            ("_shadow", &[("WF_STAGE", Some("3"))]),
+            ("_combine", &[("WF_STAGE", Some("4"))]),
+            ("_resolve", &[("WF_STAGE", Some("5"))]),
+        ],
         _ => &[("", &[])],
     }
 }

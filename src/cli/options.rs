@@ -209,6 +209,14 @@ pub struct GpuArgs {
     /// (docs/profiling.md, "Memory layout of the primitives").
     #[arg(long, value_enum, value_name = "LAYOUT", default_value_t = gpu::PrimLayout::Aos)]
     pub prim_layout: gpu::PrimLayout,
+    /// How the GPU walks the ray tree: `mega`, one invocation per pixel
+    /// walking its whole tree (one dispatch per tile), or `wavefront`,
+    /// queues of rays processed stage by stage (generate, closest hit,
+    /// shade and spawn, shadow, combine, resolve: several dispatches per
+    /// depth, the queues compacted). The same image; exact arithmetic
+    /// only for the wavefront (docs/gpu.md, "Megakernel and wavefront").
+    #[arg(long, value_enum, value_name = "KERNEL", default_value_t = gpu::GpuKernel::Mega)]
+    pub kernel: gpu::GpuKernel,
 }
 
 impl GpuArgs {
@@ -228,6 +236,7 @@ impl GpuArgs {
             fence_timeout: self.fence_timeout,
             math: self.gpu_math,
             prim_layout: self.prim_layout,
+            kernel: self.kernel,
             ..Default::default()
         }
     }

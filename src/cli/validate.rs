@@ -87,6 +87,7 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
             "scene": a.scene,
             "device": g.info().name,
             "gpu_math": gopts.math,
+            "gpu_kernel": gopts.kernel,
             "comparison": c,
             "passed": c.passed(),
             "seconds": { "cpu": cpu_frame.seconds, "gpu_wall": gpu_frame.seconds, "gpu": gpu_frame.device_seconds },

@@ -47,6 +47,14 @@ impl std::fmt::Display for Work<'_> {
     }
 }
 
+/// One dispatch of a submission (`Commands::record_stages`).
+pub struct Stage<'a> {
+    pub kernel: &'a Kernel,
+    /// The push constants (`kernel.push_size` bytes).
+    pub push: &'a [u8],
+    pub groups: [u32; 3],
+}
+
 /// One command pool, one primary command buffer, a fence and (when the
 /// queue has timestamps) a two-entry query pool.
 pub struct Commands {
@@ -221,46 +229,96 @@ impl Commands {
         groups: [u32; 3],
         counters: Option<&Buffer>,
     ) {
-        debug_assert_eq!(push.len() as u32, kernel.push_size);
+        let zero: Vec<&Buffer> = counters.into_iter().collect();
+        self.record_stages(
+            d,
+            cmd,
+            &zero,
+            &[Stage {
+                kernel,
+                push,
+                groups,
+            }],
+        );
+    }
+
+    /// Records `stages` in order between two timestamps: zero every buffer
+    /// of `zero`, then each stage after a barrier that makes what came
+    /// before it visible (a stage with no workgroups is left out), and
+    /// last a barrier to host reads.
+    pub fn record_stages(
+        &self,
+        d: &ash::Device,
+        cmd: vk::CommandBuffer,
+        zero: &[&Buffer],
+        stages: &[Stage],
+    ) {
         let timed = self.queries != vk::QueryPool::null();
-        // SAFETY: `cmd` is recording; every handle is live and owned by
-        // this device; the barriers order the fill before the shader and
-        // the shader before the host's reads after the fence.
-        unsafe {
-            if timed {
-                d.cmd_reset_query_pool(cmd, self.queries, 0, 2);
-            }
-            if let Some(c) = counters {
-                d.cmd_fill_buffer(cmd, c.buffer, 0, vk::WHOLE_SIZE, 0);
-                let b = [vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)];
+        let compute_barrier = |src: vk::AccessFlags, src_stage: vk::PipelineStageFlags| {
+            let b = [vk::MemoryBarrier::default()
+                .src_access_mask(src)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)];
+            // SAFETY: a global barrier in a recording command buffer.
+            unsafe {
                 d.cmd_pipeline_barrier(
                     cmd,
-                    vk::PipelineStageFlags::TRANSFER,
+                    src_stage,
                     vk::PipelineStageFlags::COMPUTE_SHADER,
                     vk::DependencyFlags::empty(),
                     &b,
                     &[],
                     &[],
-                );
+                )
+            };
+        };
+        // SAFETY: `cmd` is recording; every handle is live and owned by
+        // this device; the barriers order the fills before the first
+        // shader, each shader before the next, and the last before the
+        // host's reads after the fence.
+        unsafe {
+            if timed {
+                d.cmd_reset_query_pool(cmd, self.queries, 0, 2);
             }
-            d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-            d.cmd_bind_descriptor_sets(
-                cmd,
-                vk::PipelineBindPoint::COMPUTE,
-                kernel.layout,
-                0,
-                &[kernel.set],
-                &[],
-            );
-            if !push.is_empty() {
-                d.cmd_push_constants(cmd, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+            for c in zero {
+                d.cmd_fill_buffer(cmd, c.buffer, 0, vk::WHOLE_SIZE, 0);
+            }
+            if !zero.is_empty() {
+                compute_barrier(
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::TRANSFER,
+                );
             }
             if timed {
                 d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, self.queries, 0);
             }
-            d.cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
+            let mut first = true;
+            for s in stages {
+                debug_assert_eq!(s.push.len() as u32, s.kernel.push_size);
+                if s.groups.contains(&0) {
+                    continue;
+                }
+                if !first {
+                    compute_barrier(
+                        vk::AccessFlags::SHADER_WRITE,
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                    );
+                }
+                first = false;
+                let k = s.kernel;
+                d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, k.pipeline);
+                d.cmd_bind_descriptor_sets(
+                    cmd,
+                    vk::PipelineBindPoint::COMPUTE,
+                    k.layout,
+                    0,
+                    &[k.set],
+                    &[],
+                );
+                if !s.push.is_empty() {
+                    d.cmd_push_constants(cmd, k.layout, vk::ShaderStageFlags::COMPUTE, 0, s.push);
+                }
+                d.cmd_dispatch(cmd, s.groups[0], s.groups[1], s.groups[2]);
+            }
             if timed {
                 d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.queries, 1);
             }

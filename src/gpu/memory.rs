@@ -217,6 +217,66 @@ impl Buffer {
         )
     }
 
+    /// A device-local storage buffer the shaders alone read and write
+    /// (the wavefront kernel's queues), which may be copied from and to.
+    pub fn device(ctx: &Arc<Context>, name: &str, size: u64) -> Result<Self, GpuError> {
+        Buffer::new(
+            ctx,
+            name,
+            size,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_SRC
+                | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        )
+    }
+
+    /// A larger `device` buffer of `size` bytes holding `regions` of this
+    /// one, each (from, to, bytes), copied on the device.
+    pub fn grown(
+        &self,
+        cmds: &Commands,
+        name: &str,
+        size: u64,
+        regions: &[(u64, u64, u64)],
+    ) -> Result<Self, GpuError> {
+        let new = Buffer::device(&self.ctx, name, size)?;
+        let copies: Vec<vk::BufferCopy> = regions
+            .iter()
+            .filter(|r| r.2 > 0)
+            .map(|&(from, to, bytes)| {
+                vk::BufferCopy::default()
+                    .src_offset(from)
+                    .dst_offset(to)
+                    .size(bytes)
+            })
+            .collect();
+        if copies.is_empty() {
+            return Ok(new);
+        }
+        cmds.run_once(Work::Upload(name), |d, cmd| {
+            // SAFETY: both buffers are live and not in use; every region
+            // lies inside both (the caller's sizes).
+            unsafe { d.cmd_copy_buffer(cmd, self.buffer, new.buffer, &copies) };
+            let barrier = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)];
+            // SAFETY: a global barrier in a recording command buffer.
+            unsafe {
+                d.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &barrier,
+                    &[],
+                    &[],
+                )
+            };
+        })?;
+        Ok(new)
+    }
+
     /// A host-written storage buffer the shader reads (probe inputs).
     pub fn host_input(ctx: &Arc<Context>, name: &str, data: &[u8]) -> Result<Self, GpuError> {
         let mut b = Buffer::new(

@@ -14,6 +14,7 @@ pub mod memory;
 pub mod pipeline;
 pub mod probe;
 pub mod shaders;
+pub mod wavefront;
 
 pub use context::{validation_errors, validation_warnings, DeviceInfo, DeviceKind};
 pub use probe::{ProbeItem, ProbeMode, ProbeResult};
@@ -396,6 +397,51 @@ impl GpuMath {
     }
 }
 
+/// How the render kernel walks the ray tree (`--kernel`; docs/gpu.md,
+/// "Megakernel and wavefront"). The same image either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GpuKernel {
+    /// One invocation per lattice point walks its whole ray tree
+    /// (`shaders/render.comp`).
+    #[default]
+    Mega,
+    /// Queues of rays processed stage by stage, one dispatch per stage
+    /// and depth (`shaders/wavefront.comp`; exact arithmetic only).
+    Wavefront,
+}
+
+impl GpuKernel {
+    /// The name `--kernel` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            GpuKernel::Mega => "mega",
+            GpuKernel::Wavefront => "wavefront",
+        }
+    }
+}
+
+/// Ray counts, work counters and cut loops from a kernel's counters
+/// buffer (`shaders/counts.glsl`).
+fn read_counts(counters: &Buffer) -> Result<(RayStats, crate::trace::query::Work, u32), GpuError> {
+    let c: [u32; 12] = bytemuck::pod_read_unaligned(counters.read(48)?);
+    let wide = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
+    let work = crate::trace::query::Work {
+        tests: wide(c[6], c[7]),
+        cells: wide(c[8], c[9]),
+        nodes: wide(c[10], c[11]),
+        ..Default::default()
+    };
+    let stats = RayStats {
+        eye: c[0] as u64,
+        eye_hit: c[1] as u64,
+        reflect: c[2] as u64,
+        refract: c[3] as u64,
+        shadow: c[4] as u64,
+    };
+    Ok((stats, work, c[5]))
+}
+
 /// `WHITTED_RENDER_SPV=FILE`: a SPIR-V module to render with instead of
 /// the built-in kernel (either `--gpu-math`), for trying a variant of
 /// the shader without rebuilding (docs/profiling.md, "Trying a kernel
@@ -452,6 +498,8 @@ pub struct GpuOptions {
     pub math: GpuMath,
     /// How the primitives lie in the device's buffer.
     pub prim_layout: PrimLayout,
+    /// The megakernel or the wavefront kernel.
+    pub kernel: GpuKernel,
     /// Neither `--workgroup` nor `--tile` was given: `render` may use the
     /// shape `whitted profile --save` stored for the device
     /// (`profile::apply_saved`).
@@ -473,6 +521,7 @@ impl Default for GpuOptions {
             saved_shape: false,
             math: GpuMath::Exact,
             prim_layout: PrimLayout::Aos,
+            kernel: GpuKernel::Mega,
         }
     }
 }
@@ -848,6 +897,14 @@ impl Gpu {
         opts: &GpuOptions,
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
+        if opts.kernel == GpuKernel::Wavefront {
+            if opts.math != GpuMath::Exact {
+                return Err(GpuError::Setting(
+                    "--kernel wavefront has only the exact arithmetic: drop --gpu-math fast".into(),
+                ));
+            }
+            return self.guarded(|| self.render_wavefront(packed, opts, progress));
+        }
         if let Some(variant) = render_variant()? {
             return self
                 .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
@@ -957,24 +1014,12 @@ impl Gpu {
                     )
                 },
             )?;
-            let c: [u32; 12] = bytemuck::pod_read_unaligned(counters.read(48)?);
-            let wide = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
-            work.add(&crate::trace::query::Work {
-                tests: wide(c[6], c[7]),
-                cells: wide(c[8], c[9]),
-                nodes: wide(c[10], c[11]),
-                ..Default::default()
-            });
-            if c[5] > 0 {
-                return Err(self.loops_cut(packed, c[5]));
+            let (s, wk, cut) = read_counts(&counters)?;
+            if cut > 0 {
+                return Err(self.loops_cut(packed, cut));
             }
-            stats.add(&RayStats {
-                eye: c[0] as u64,
-                eye_hit: c[1] as u64,
-                reflect: c[2] as u64,
-                refract: c[3] as u64,
-                shadow: c[4] as u64,
-            });
+            work.add(&wk);
+            stats.add(&s);
             if let Some(s) = cmds.elapsed()? {
                 *device_seconds.get_or_insert(0.0) += s;
             }

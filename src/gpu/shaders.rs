@@ -12,3 +12,11 @@ pub const RENDER_FAST: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/render_
 /// `shaders/probe.comp`: test kernels running one function on many inputs
 /// (always exact).
 pub const PROBE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv"));
+/// `shaders/wavefront.comp`, one module per stage (`WF_STAGE`): the
+/// wavefront kernel (`--kernel wavefront`, src/gpu/wavefront.rs).
+pub const WF_GENERATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_generate.spv"));
+pub const WF_EXTEND: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_extend.spv"));
+pub const WF_SHADE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_shade.spv"));
+pub const WF_SHADOW: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_shadow.spv"));
+pub const WF_COMBINE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_combine.spv"));
+pub const WF_RESOLVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_resolve.spv"));
