@@ -1916,3 +1916,158 @@ fn generated_scenes_match_on_every_structure() {
         }
     }
 }
+
+/// The wavefront kernel (`--kernel wavefront`) renders the megakernel's
+/// image with the megakernel's ray counts: every scene under every
+/// structure, light buffers, jittered samples, corner sampling with SPD
+/// counting (weightless rays), workgroup shapes, and a deep tree in small
+/// tiles whose queues must grow mid-tile (shade runs again). On lavapipe
+/// both are the CPU mirror's image bit for bit. The work counters may
+/// differ only by the shadow cache's lifetime (one feeler per invocation
+/// in the wavefront's shadow stage).
+#[test]
+fn wavefront_kernel_gives_the_megakernels_image() {
+    use whitted::constants::FLAG_SPD_COUNTING;
+    use whitted::gpu::GpuKernel;
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    let wave = |wg: [u32; 2], tile: u32| GpuOptions {
+        kernel: GpuKernel::Wavefront,
+        workgroup: wg,
+        tile,
+        ..Default::default()
+    };
+    let mut cases: Vec<(String, Packed, GpuOptions)> = Vec::new();
+    for f in scene_files() {
+        for (accel, shadows) in [
+            (Accel::Grid, Shadows::Plain),
+            (Accel::Bvh, Shadows::Plain),
+            (Accel::Octree, Shadows::LightBuffer),
+            (Accel::Hybrid, Shadows::Plain),
+        ] {
+            let s = Settings {
+                accel,
+                shadows,
+                spp: 2,
+                ..common::small(36, 27)
+            };
+            let name = format!("{} {accel:?} {shadows:?}", f.display());
+            cases.push((name, common::load(&f, &s), wave([8, 8], 256)));
+        }
+    }
+    let showcase = common::repo().join("scenes/showcase.toml");
+    let mut spd = common::load(
+        &showcase,
+        &Settings {
+            sampling: Sampling::Corners,
+            min_weight: 0.0,
+            max_depth: 4,
+            ..common::small(33, 21)
+        },
+    );
+    spd.globals.flags[0] |= FLAG_SPD_COUNTING;
+    cases.push((
+        "showcase corners, SPD counting".into(),
+        spd,
+        wave([32, 1], 16),
+    ));
+    let deep = common::load(
+        &showcase,
+        &Settings {
+            max_depth: 12,
+            min_weight: 0.0,
+            ..common::small(40, 30)
+        },
+    );
+    cases.push(("showcase depth 12, tile 8".into(), deep, wave([4, 4], 8)));
+    for (name, p, opts) in cases {
+        let mega = g.render(&p, &GpuOptions::default(), &|_, _| {}).unwrap();
+        let calls = std::sync::atomic::AtomicU64::new(0);
+        let f = g
+            .render(&p, &opts, &|_, _| {
+                calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            })
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(calls.into_inner() >= 1, "{name}: no progress reported");
+        assert!(
+            bits(&f) == bits(&mega),
+            "{name}: wavefront and megakernel differ"
+        );
+        assert_eq!(f.stats, mega.stats, "{name}: ray counts");
+        assert!(f.work.tests > 0, "{name}: no primitive tested");
+        if exact {
+            let cpu = cpu::render(&p, &|_, _| {});
+            assert!(
+                bits(&f) == bits(&cpu),
+                "{name}: wavefront against the CPU mirror"
+            );
+        }
+    }
+    common::assert_no_validation_errors();
+}
+
+/// `--kernel wavefront` end to end: `render` says so in --stats and
+/// writes the megakernel's image; `validate` passes; with `--gpu-math
+/// fast` (which the wavefront lacks) it is a usage error, exit 2, no file.
+#[test]
+fn cli_kernel_wavefront() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let render = |kernel: &str, extra: &[&str]| {
+        let png = dir.path().join(format!("{kernel}.png"));
+        let json = dir.path().join(format!("{kernel}.json"));
+        let o = whitted()
+            .env("WHITTED_VALIDATION", "1")
+            .args([
+                "render",
+                "scenes/showcase.toml",
+                "--width",
+                "40",
+                "--height",
+                "30",
+            ])
+            .args(["--backend", "gpu", "--kernel", kernel, "-q", "-o"])
+            .arg(&png)
+            .arg("--stats")
+            .arg(&json)
+            .args(extra)
+            .output()
+            .unwrap();
+        (o, png, json)
+    };
+    let (o, wave_png, json) = render("wavefront", &[]);
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    assert!(!stderr_of(&o).contains("vulkan:"), "{}", stderr_of(&o));
+    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(s["gpu_kernel"], "wavefront");
+    assert_eq!(s["rays"]["eye"], 40 * 30);
+    let (o, mega_png, _) = render("mega", &[]);
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    assert_eq!(
+        std::fs::read(&wave_png).unwrap(),
+        std::fs::read(&mega_png).unwrap()
+    );
+    whitted()
+        .args([
+            "validate",
+            "scenes/showcase.toml",
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ])
+        .args(["--kernel", "wavefront"])
+        .assert()
+        .success();
+    std::fs::remove_file(&wave_png).unwrap();
+    let (o, png, _) = render("wavefront", &["--gpu-math", "fast"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
+    assert!(
+        stderr_of(&o).contains("--kernel wavefront"),
+        "{}",
+        stderr_of(&o)
+    );
+    assert!(!png.exists());
+}
