@@ -40,13 +40,15 @@ pub struct Case {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Engine {
     /// `whitted render --backend cpu|gpu [--accel A] [--shadows S]
-    /// [--gpu-math M] [--packet N]`.
+    /// [--gpu-math M] [--kernel K] [--packet N]`.
     Whitted {
         backend: String,
         accel: Option<String>,
         shadows: Option<String>,
         /// The GPU kernel (None: the default, exact).
         gpu_math: Option<crate::gpu::GpuMath>,
+        /// `--kernel` (None: the default, the megakernel).
+        kernel: Option<crate::gpu::GpuKernel>,
         /// The CPU's packet width (None: `render`'s default).
         packet: Option<String>,
         label: String,
@@ -310,6 +312,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
             accel,
             shadows,
             gpu_math,
+            kernel,
             packet,
             ..
         } => {
@@ -323,6 +326,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                 .args(accel.iter().flat_map(|a| ["--accel", a.as_str()]))
                 .args(shadows.iter().flat_map(|s| ["--shadows", s.as_str()]))
                 .args(gpu_math.iter().flat_map(|m| ["--gpu-math", m.name()]))
+                .args(kernel.iter().flat_map(|k| ["--kernel", k.name()]))
                 .args(packet.iter().flat_map(|p| ["--packet", p.as_str()]))
                 .arg("--stats")
                 .arg(&stats)

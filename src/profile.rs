@@ -6,7 +6,7 @@
 
 use crate::bench::Summary;
 use crate::cpu::Frame;
-use crate::gpu::{DeviceInfo, Gpu, GpuOptions};
+use crate::gpu::{DeviceInfo, Gpu, GpuKernel, GpuMath, GpuOptions};
 use crate::pack::Packed;
 use anyhow::{anyhow, Context, Result};
 use std::path::PathBuf;
@@ -18,6 +18,8 @@ pub const FULL_TILE: u32 = 16384;
 /// One combination's measurements.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
+    /// The megakernel or the wavefront kernel (`--kernels`).
+    pub kernel: GpuKernel,
     pub workgroup: [u32; 2],
     /// The tile edge; `FULL_TILE` for `full`.
     pub tile: u32,
@@ -48,38 +50,46 @@ impl Row {
     }
 }
 
-/// Renders `packed` with every combination: one warm-up render each (it
-/// also compiles each shape's pipeline), then `repeat` rounds over all of
-/// them. A shape the device refuses is a row with the reason, not an
-/// error. Every image must equal the first one bit for bit (a dispatch
-/// shape never changes a pixel), else the run fails.
+/// Renders `packed` with every combination of kernel, workgroup shape and
+/// tile: one warm-up render each (it also compiles each shape's
+/// pipeline), then `repeat` rounds over all of them. A combination the
+/// device (or the kernel) refuses is a row with the reason, not an error.
+/// Every image must equal the first one bit for bit (neither a dispatch
+/// shape nor the kernel ever changes a pixel), else the run fails.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     g: &Gpu,
     packed: &Packed,
     base: &GpuOptions,
+    kernels: &[GpuKernel],
     workgroups: &[[u32; 2]],
     tiles: &[u32],
     repeat: u32,
     progress: &dyn Fn(u64, u64),
 ) -> Result<Vec<Row>> {
-    let combos: Vec<([u32; 2], u32)> = workgroups
+    let combos: Vec<(GpuKernel, [u32; 2], u32)> = kernels
         .iter()
-        .flat_map(|&w| tiles.iter().map(move |&t| (w, t)))
+        .flat_map(|&k| {
+            workgroups
+                .iter()
+                .flat_map(move |&w| tiles.iter().map(move |&t| (k, w, t)))
+        })
         .collect();
     let total = (combos.len() * (1 + repeat.max(1) as usize)) as u64;
     let mut step = 0u64;
     let mut first: Option<Frame> = None;
     let mut refused: Vec<Option<String>> = Vec::new();
     let mut rays = Vec::new();
-    let opts = |w: [u32; 2], t: u32| GpuOptions {
+    let opts = |k: GpuKernel, w: [u32; 2], t: u32| GpuOptions {
+        kernel: k,
         workgroup: w,
         tile: t,
         ..base.clone()
     };
-    for &(w, t) in &combos {
+    for &(k, w, t) in &combos {
         progress(step, total);
         step += 1;
-        match g.render(packed, &opts(w, t), &|_, _| {}) {
+        match g.render(packed, &opts(k, w, t), &|_, _| {}) {
             Ok(f) => {
                 if let Some(f0) = &first {
                     let same = f0
@@ -90,8 +100,10 @@ pub fn run(
                         .all(|(a, b)| a.to_bits() == b.to_bits());
                     if !same || f0.stats != f.stats {
                         return Err(anyhow!(
-                            "workgroup {}x{}, tile {t}: the image or the ray counts differ from \
-                             the first shape's: a dispatch shape must never change a pixel",
+                            "{} kernel, workgroup {}x{}, tile {t}: the image or the ray counts \
+                             differ from the first combination's: neither a dispatch shape nor \
+                             the kernel may change a pixel",
+                            k.name(),
                             w[0],
                             w[1]
                         ));
@@ -111,14 +123,14 @@ pub fn run(
     let mut device: Vec<Vec<f64>> = vec![Vec::new(); combos.len()];
     let mut wall: Vec<Vec<f64>> = vec![Vec::new(); combos.len()];
     for _ in 0..repeat.max(1) {
-        for (i, &(w, t)) in combos.iter().enumerate() {
+        for (i, &(k, w, t)) in combos.iter().enumerate() {
             progress(step, total);
             step += 1;
             if refused[i].is_some() {
                 continue;
             }
             let f = g
-                .render(packed, &opts(w, t), &|_, _| {})
+                .render(packed, &opts(k, w, t), &|_, _| {})
                 .map_err(crate::run::gpu_error)?;
             if let Some(d) = f.device_seconds {
                 device[i].push(d);
@@ -130,7 +142,8 @@ pub fn run(
     let mut rows: Vec<Row> = combos
         .iter()
         .enumerate()
-        .map(|(i, &(w, t))| Row {
+        .map(|(i, &(k, w, t))| Row {
+            kernel: k,
             workgroup: w,
             tile: t,
             device: Summary::of(&device[i]),
@@ -154,21 +167,26 @@ pub fn run(
 /// The table for a terminal, fastest first.
 pub fn table(rows: &[Row]) -> String {
     let mut s = format!(
-        "{:>9} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9}\n",
-        "workgroup", "tile", "device med", "min", "max", "wall med", "Mrays/s"
+        "{:>19} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9}\n",
+        "kernel workgroup", "tile", "device med", "min", "max", "wall med", "Mrays/s"
     );
     let best = rows.iter().find(|r| r.best).map(|r| r.key());
     for r in rows {
-        let wg = format!("{}x{}", r.workgroup[0], r.workgroup[1]);
+        let wg = format!(
+            "{:>9} {}x{}",
+            r.kernel.name(),
+            r.workgroup[0],
+            r.workgroup[1]
+        );
         if let Some(why) = &r.refused {
-            s += &format!("{wg:>9} {:>6}  refused: {why}\n", r.tile_name());
+            s += &format!("{wg:>19} {:>6}  refused: {why}\n", r.tile_name());
             continue;
         }
         let (m, lo, hi) = r
             .device
             .map_or((f64::NAN, f64::NAN, f64::NAN), |d| (d.median, d.min, d.max));
         s += &format!(
-            "{wg:>9} {:>6} {m:>10.4} {lo:>10.4} {hi:>10.4} {:>10.4} {:>9.2}{}\n",
+            "{wg:>19} {:>6} {m:>10.4} {lo:>10.4} {hi:>10.4} {:>10.4} {:>9.2}{}\n",
             r.tile_name(),
             r.wall.median,
             r.rays as f64 / r.key().max(1e-12) / 1e6,
@@ -186,6 +204,7 @@ pub fn table(rows: &[Row]) -> String {
 pub fn csv(rows: &[Row]) -> Result<String> {
     let mut w = csv::Writer::from_writer(Vec::new());
     w.write_record([
+        "kernel",
         "workgroup",
         "tile",
         "device_median_s",
@@ -204,6 +223,7 @@ pub fn csv(rows: &[Row]) -> Result<String> {
                 .map_or(String::new(), |s| format!("{:.6}", f(s)))
         };
         w.write_record([
+            r.kernel.name().to_string(),
             format!("{}x{}", r.workgroup[0], r.workgroup[1]),
             r.tile_name(),
             d(|s| s.median),
@@ -223,30 +243,34 @@ pub fn csv(rows: &[Row]) -> Result<String> {
     Ok(String::from_utf8(w.into_inner()?)?)
 }
 
-/// The heat map: workgroup shapes down, tile sizes across, each cell the
-/// median time relative to the best.
+/// The heat map: workgroup shapes down (per kernel when there are
+/// several), tile sizes across, each cell the median time relative to the
+/// best.
 pub fn heat_map(rows: &[Row], title: &str) -> crate::plot::HeatMap {
-    let mut wgs: Vec<[u32; 2]> = Vec::new();
+    let mut wgs: Vec<(GpuKernel, [u32; 2])> = Vec::new();
     let mut tiles: Vec<u32> = Vec::new();
     for r in rows {
-        if !wgs.contains(&r.workgroup) {
-            wgs.push(r.workgroup);
+        if !wgs.contains(&(r.kernel, r.workgroup)) {
+            wgs.push((r.kernel, r.workgroup));
         }
         if !tiles.contains(&r.tile) {
             tiles.push(r.tile);
         }
     }
-    wgs.sort_by_key(|w| (w[0] * w[1], w[0]));
+    wgs.sort_by_key(|&(k, w)| (k == GpuKernel::Wavefront, w[0] * w[1], w[0]));
+    let several = wgs.iter().any(|&(k, _)| k != wgs[0].0);
     tiles.sort();
     let best = rows.iter().find(|r| r.best).map_or(1.0, |r| r.key());
     let cells = wgs
         .iter()
-        .map(|w| {
+        .map(|&(k, w)| {
             tiles
                 .iter()
                 .map(|t| {
                     rows.iter()
-                        .find(|r| r.workgroup == *w && r.tile == *t && r.refused.is_none())
+                        .find(|r| {
+                            r.kernel == k && r.workgroup == w && r.tile == *t && r.refused.is_none()
+                        })
                         .map(|r| r.key() / best)
                 })
                 .collect()
@@ -254,7 +278,16 @@ pub fn heat_map(rows: &[Row], title: &str) -> crate::plot::HeatMap {
         .collect();
     crate::plot::HeatMap {
         title: title.into(),
-        rows: wgs.iter().map(|w| format!("{}x{}", w[0], w[1])).collect(),
+        rows: wgs
+            .iter()
+            .map(|&(k, w)| {
+                if several {
+                    format!("{} {}x{}", k.name(), w[0], w[1])
+                } else {
+                    format!("{}x{}", w[0], w[1])
+                }
+            })
+            .collect(),
         columns: tiles
             .iter()
             .map(|&t| {
@@ -281,6 +314,10 @@ pub struct Saved {
     pub driver: String,
     pub workgroup: [u32; 2],
     pub tile: u32,
+    /// The kernel that won (files saved before kernels were profiled have
+    /// none: the megakernel).
+    #[serde(default)]
+    pub kernel: GpuKernel,
     /// The command that measured it.
     pub measured_by: String,
 }
@@ -328,28 +365,37 @@ pub fn load(info: &DeviceInfo) -> Option<(Saved, PathBuf)> {
 }
 
 /// The options a render uses: the saved shape for this device when the
-/// user gave neither `--workgroup` nor `--tile` (`opts.saved_shape`).
+/// user gave neither `--workgroup` nor `--tile` (`opts.saved_shape`), and
+/// the saved kernel when the user gave no `--kernel` (`opts.saved_kernel`)
+/// and the arithmetic is exact (the wavefront has no fast one).
 pub fn apply_saved(info: &DeviceInfo, opts: &GpuOptions) -> GpuOptions {
-    if !opts.saved_shape {
+    if !opts.saved_shape && !opts.saved_kernel {
         return opts.clone();
     }
-    match load(info) {
-        Some((s, p)) => {
-            log::debug!(
-                "dispatch shape {}x{}, tile {} from {} (whitted profile --save)",
-                s.workgroup[0],
-                s.workgroup[1],
-                s.tile,
-                p.display()
-            );
-            GpuOptions {
-                workgroup: s.workgroup,
-                tile: s.tile,
-                ..opts.clone()
-            }
-        }
-        None => opts.clone(),
+    let Some((s, p)) = load(info) else {
+        return opts.clone();
+    };
+    let mut out = opts.clone();
+    if opts.saved_shape {
+        log::debug!(
+            "dispatch shape {}x{}, tile {} from {} (whitted profile --save)",
+            s.workgroup[0],
+            s.workgroup[1],
+            s.tile,
+            p.display()
+        );
+        out.workgroup = s.workgroup;
+        out.tile = s.tile;
     }
+    if opts.saved_kernel && (s.kernel == GpuKernel::Mega || opts.math == GpuMath::Exact) {
+        log::debug!(
+            "the {} kernel from {} (whitted profile --save)",
+            s.kernel.name(),
+            p.display()
+        );
+        out.kernel = s.kernel;
+    }
+    out
 }
 
 /// Parses a tile list entry: a number or `full`.
@@ -378,6 +424,7 @@ mod tests {
     #[test]
     fn the_table_marks_the_best_and_ratios() {
         let row = |w: u32, t: f64| Row {
+            kernel: GpuKernel::Mega,
             workgroup: [w, 1],
             tile: 64,
             device: Some(Summary {

@@ -97,6 +97,9 @@ pub struct Rendered {
     /// Seconds spent packing (grid build included).
     pub pack_seconds: f64,
     pub grid: pack::GridInfo,
+    /// The GPU kernel that rendered it (the saved profile's when the user
+    /// named none); None on the CPU.
+    pub kernel: Option<crate::gpu::GpuKernel>,
 }
 
 /// A progress callback: (done, total) units of work.
@@ -279,23 +282,26 @@ pub fn render_packed_surveyed(
         device,
         pack_seconds: 0.0,
         grid: packed.grid.clone(),
+        kernel: None,
     };
     match choose(opts, survey)? {
-        Chosen::Gpu(g) => match g.render(
-            packed,
-            &crate::profile::apply_saved(g.info(), &opts.gpu),
-            progress,
-        ) {
-            Ok(frame) => Ok(done(frame, Used::Gpu, g.info().name.clone())),
-            Err(e) if opts.backend == Backend::Auto && is_device_fault(&e) => {
-                log::warn!("{e}; finishing the render on the CPU mirror");
-                drop(g);
-                let frame =
-                    render_cpu(packed, opts.threads, opts.precision, opts.packet, progress)?;
-                Ok(done(frame, Used::Cpu, "CPU mirror".into()))
+        Chosen::Gpu(g) => {
+            let gopts = crate::profile::apply_saved(g.info(), &opts.gpu);
+            match g.render(packed, &gopts, progress) {
+                Ok(frame) => Ok(Rendered {
+                    kernel: Some(gopts.kernel),
+                    ..done(frame, Used::Gpu, g.info().name.clone())
+                }),
+                Err(e) if opts.backend == Backend::Auto && is_device_fault(&e) => {
+                    log::warn!("{e}; finishing the render on the CPU mirror");
+                    drop(g);
+                    let frame =
+                        render_cpu(packed, opts.threads, opts.precision, opts.packet, progress)?;
+                    Ok(done(frame, Used::Cpu, "CPU mirror".into()))
+                }
+                Err(e) => Err(gpu_error(e)),
             }
-            Err(e) => Err(gpu_error(e)),
-        },
+        }
         Chosen::Cpu(why) => {
             if let Some(why) = why {
                 log::info!("rendering on the CPU mirror: {why}");

@@ -148,6 +148,7 @@ fn bench_refuses_bad_requests_before_work() {
         (vec!["bench", "--only", "nothing-matches"], "no case to run"),
         (vec!["bench", "--runs", "0"], "0"),
         (vec!["bench", "--gpu-math", "fast"], "--gpu-math"),
+        (vec!["bench", "--kernels", "wavefront"], "--kernels"),
     ] {
         let out = whitted()
             .current_dir(d.path())

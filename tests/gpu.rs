@@ -1556,7 +1556,7 @@ fn cli_render_spv_variant() {
 /// reason), the best marked once, the phases printed, and `--save` makes
 /// `render` use the best shape unless a shape is given.
 #[test]
-fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
+fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape_and_kernel() {
     if common::gpu().is_none() {
         return;
     }
@@ -1577,6 +1577,8 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
             "8x8,16x2,64x32",
             "--tiles",
             "16,full",
+            "--kernels",
+            "mega,wavefront",
             "--repeat",
             "1",
             "--save",
@@ -1595,20 +1597,29 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
     }
     let mut r = csv::Reader::from_path(&csv_path).unwrap();
     let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
-    assert_eq!(rows.len(), 6);
-    assert_eq!(rows.iter().filter(|r| &r[8] == "true").count(), 1);
+    // Columns: kernel, workgroup, tile, device median, min, max, wall
+    // median, rays, Mrays/s, best, refused.
+    assert_eq!(rows.len(), 12);
+    for k in ["mega", "wavefront"] {
+        assert_eq!(rows.iter().filter(|r| &r[0] == k).count(), 6, "{k}");
+    }
+    assert_eq!(rows.iter().filter(|r| &r[9] == "true").count(), 1);
     // 64×32 = 2048 invocations, over lavapipe's limit of 1024 (some GPUs
     // allow it): where a device refuses a shape, the reason names its limit.
     for row in &rows {
-        if !row[9].is_empty() {
-            assert!(row[9].contains("invocations"), "{:?}", row);
+        if !row[10].is_empty() {
+            assert!(row[10].contains("invocations"), "{:?}", row);
         } else {
-            assert!(row[2].parse::<f64>().unwrap() > 0.0);
+            assert!(row[3].parse::<f64>().unwrap() > 0.0);
         }
     }
     assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
-    let best = rows.iter().find(|r| &r[8] == "true").unwrap();
-    let (wg, tile) = (best[0].to_string(), best[1].to_string());
+    let best = rows.iter().find(|r| &r[9] == "true").unwrap();
+    let (kernel, wg, tile) = (
+        best[0].to_string(),
+        best[1].to_string(),
+        best[2].to_string(),
+    );
     let saved: Vec<_> = std::fs::read_dir(cache.join("whitted/profiles"))
         .unwrap()
         .collect();
@@ -1634,7 +1645,16 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
             .success();
         String::from_utf8_lossy(&o.get_output().stderr).into_owned()
     };
-    let used = render(&[]);
+    let stats = dir.path().join("r.json");
+    let stats_arg = stats.to_str().unwrap();
+    let used = render(&["--stats", stats_arg]);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(s["gpu_kernel"], kernel.as_str(), "{used}");
+    assert!(
+        used.contains(&format!("the {kernel} kernel from")),
+        "{used}"
+    );
     let tile_shown = if tile == "full" {
         "16384".to_string()
     } else {
@@ -1645,7 +1665,19 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape() {
         "{used}"
     );
     let given = render(&["--workgroup", "8x4"]);
-    assert!(!given.contains("whitted profile --save"), "{given}");
+    assert!(!given.contains("dispatch shape"), "{given}");
+    assert!(given.contains("kernel from"), "{given}");
+    // A kernel given on the command line wins over the saved one.
+    let other = if kernel == "mega" {
+        "wavefront"
+    } else {
+        "mega"
+    };
+    let given = render(&["--kernel", other, "--stats", stats_arg]);
+    assert!(!given.contains("kernel from"), "{given}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(s["gpu_kernel"], other);
 }
 
 /// The GPU's work counters (`Frame::work`, 64-bit through a carry word)
@@ -1864,6 +1896,65 @@ fn bench_goes_on_past_a_failing_engine() {
             assert!(row[col("wall_median_s")].parse::<f64>().unwrap() > 0.0);
         }
     }
+}
+
+/// `whitted bench --kernels mega,wavefront --gpu-math exact,fast`: the GPU
+/// once per kernel and arithmetic, but never the wavefront with fast
+/// arithmetic (it has none); the wavefront traces the megakernel's rays.
+#[test]
+fn bench_times_each_kernel() {
+    let Some(g) = common::gpu() else { return };
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("k.csv");
+    let o = whitted()
+        .args([
+            "-q",
+            "bench",
+            "--suite",
+            "spd",
+            "--only",
+            "balls",
+            "--size",
+            "1",
+            "--runs",
+            "1",
+            "--warmup",
+            "0",
+            "--resolution",
+            "24x24",
+            "--backends",
+            "gpu",
+            "--kernels",
+            "mega,wavefront",
+            "--gpu-math",
+            "exact,fast",
+            "--csv",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr_of(&o));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut r = csv::Reader::from_reader(text.as_bytes());
+    let header = r.headers().unwrap().clone();
+    let col = |n: &str| header.iter().position(|h| h == n).unwrap();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    let name = g.info().name.split_whitespace().next().unwrap().to_string();
+    let mut engines: Vec<String> = rows.iter().map(|r| r[col("engine")].to_string()).collect();
+    engines.sort();
+    let want = |s: &str| format!("gpu:{name}{s}");
+    assert_eq!(
+        engines,
+        vec![want(""), want("/fast"), want("/wavefront")],
+        "{text}"
+    );
+    let rays = |e: &str| {
+        rows.iter()
+            .find(|r| r[col("engine")] == *e)
+            .map(|r| r[col("rays")].to_string())
+            .unwrap()
+    };
+    assert_eq!(rays(&want("")), rays(&want("/wavefront")), "{text}");
 }
 
 /// Generated scenes (random spheres, a sphereflake, SPD gears with its

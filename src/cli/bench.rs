@@ -7,7 +7,7 @@ use crate::error::user;
 use crate::files::{self, Dest, Output};
 use crate::gen;
 use crate::gen::spd::{self, SpdScene};
-use crate::gpu::GpuMath;
+use crate::gpu::{GpuKernel, GpuMath};
 use crate::scene::Scene;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -67,6 +67,13 @@ pub struct BenchArgs {
     /// gpu:llvmpipe/fast; default: exact only (`render --gpu-math`).
     #[arg(long, value_enum, value_delimiter = ',')]
     pub gpu_math: Vec<crate::gpu::GpuMath>,
+    /// GPU kernels to time (comma-separated, e.g. mega,wavefront): the gpu
+    /// backend once per kernel, the wavefront labelled e.g.
+    /// gpu:llvmpipe/wavefront; default: mega only (`render --kernel`).
+    /// The wavefront has only the exact arithmetic: with --gpu-math fast
+    /// that pair is not run.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub kernels: Vec<crate::gpu::GpuKernel>,
     /// CPU packet widths to time (comma-separated, e.g. 1,8): the cpu and
     /// auto backends once per width, labelled e.g. cpu/p8; default:
     /// `render`'s (`render --packet`; docs/method.md, "Packets of rays").
@@ -228,6 +235,16 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
             "--gpu-math times the gpu backend's kernels, and it is not among --backends"
         )));
     }
+    if !a.kernels.is_empty() && !wanted.iter().any(|b| b == "gpu") {
+        bail!(user(anyhow!(
+            "--kernels times the gpu backend's kernels, and it is not among --backends"
+        )));
+    }
+    let kernels = if a.kernels.is_empty() {
+        vec![GpuKernel::Mega]
+    } else {
+        a.kernels.clone()
+    };
     let maths = if a.gpu_math.is_empty() {
         vec![GpuMath::Exact]
     } else {
@@ -235,7 +252,7 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
     };
     let mut out = Vec::new();
     for b in wanted {
-        let (base, maths): (String, &[GpuMath]) = if b == "gpu" {
+        let (base, maths, kernels): (String, &[GpuMath], &[GpuKernel]) = if b == "gpu" {
             let name = gpu_name.as_deref().ok_or_else(|| {
                 user(anyhow!(
                     "--backends gpu: there is no usable Vulkan device (see `whitted devices`)"
@@ -244,17 +261,28 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
             (
                 format!("gpu:{}", name.split_whitespace().next().unwrap_or("gpu")),
                 &maths,
+                &kernels,
             )
         } else {
-            (b.clone(), &[GpuMath::Exact])
+            (b.clone(), &[GpuMath::Exact], &[GpuKernel::Mega])
         };
-        for &math in maths {
-            // The exact kernel keeps the plain label (the default, as before).
-            let label = match math {
+        let pairs = maths
+            .iter()
+            .flat_map(|&m| kernels.iter().map(move |&k| (m, k)));
+        // The wavefront has no fast arithmetic (`render` refuses the pair).
+        for (math, kernel) in
+            pairs.filter(|&(m, k)| !(m == GpuMath::Fast && k == GpuKernel::Wavefront))
+        {
+            // The exact megakernel keeps the plain label (the default, as before).
+            let mut label = match math {
                 GpuMath::Exact => base.clone(),
                 GpuMath::Fast => format!("{base}/fast"),
             };
+            if kernel == GpuKernel::Wavefront {
+                label = format!("{label}/wavefront");
+            }
             let gpu_math = (b == "gpu").then_some(math);
+            let gpu_kernel = (b == "gpu" && kernel != GpuKernel::Mega).then_some(kernel);
             let accels: Vec<Option<&String>> = if a.accel.is_empty() {
                 vec![None]
             } else {
@@ -286,6 +314,7 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
                             accel: accel.cloned(),
                             shadows: sh.cloned(),
                             gpu_math,
+                            kernel: gpu_kernel,
                             packet: pk.cloned(),
                             label: l,
                         });

@@ -215,8 +215,10 @@ pub struct GpuArgs {
     /// shade and spawn, shadow, combine, resolve: several dispatches per
     /// depth, the queues compacted). The same image; exact arithmetic
     /// only for the wavefront (docs/gpu.md, "Megakernel and wavefront").
-    #[arg(long, value_enum, value_name = "KERNEL", default_value_t = gpu::GpuKernel::Mega)]
-    pub kernel: gpu::GpuKernel,
+    /// [default: mega, or the kernel `whitted profile --kernels ... --save`
+    /// stored for the device; -v says so]
+    #[arg(long, value_enum, value_name = "KERNEL")]
+    pub kernel: Option<gpu::GpuKernel>,
 }
 
 impl GpuArgs {
@@ -236,7 +238,8 @@ impl GpuArgs {
             fence_timeout: self.fence_timeout,
             math: self.gpu_math,
             prim_layout: self.prim_layout,
-            kernel: self.kernel,
+            kernel: self.kernel.unwrap_or_default(),
+            saved_kernel: self.kernel.is_none(),
             ..Default::default()
         }
     }

@@ -24,6 +24,11 @@ pub struct ProfileArgs {
     #[arg(long, value_delimiter = ',', value_parser = profile::parse_tile, value_name = "N,...",
           default_value = "64,128,256,full")]
     pub tiles: Vec<u32>,
+    /// GPU kernels to profile (comma-separated, e.g. mega,wavefront): every
+    /// shape and tile once per kernel; default: the one --kernel names
+    /// (mega). With --save the winner's kernel is stored too.
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "KERNEL,...")]
+    pub kernels: Vec<crate::gpu::GpuKernel>,
     /// Timed renders per combination, after one warm-up each.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub repeat: u32,
@@ -63,7 +68,13 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
     drop(scene);
     let base = crate::gpu::GpuOptions {
         saved_shape: false,
+        saved_kernel: false,
         ..a.gpu.options()
+    };
+    let kernels = if a.kernels.is_empty() {
+        vec![base.kernel]
+    } else {
+        a.kernels.clone()
     };
     let t = Instant::now();
     let g = crate::gpu::Gpu::new(&base).map_err(|e| user(anyhow!("profile: {e}")))?;
@@ -90,6 +101,7 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
         &g,
         &packed,
         &base,
+        &kernels,
         &a.workgroups,
         &a.tiles,
         a.repeat,
@@ -145,12 +157,14 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
             driver: info.driver.clone(),
             workgroup: best.workgroup,
             tile: best.tile,
+            kernel: best.kernel,
             measured_by: format!("whitted profile {}", a.scene.display()),
         };
         let path = profile::save(info, &saved)?;
         if !ui.quiet {
             println!(
-                "saved {}x{}, tile {} for {} in {}",
+                "saved the {} kernel, {}x{}, tile {} for {} in {}",
+                best.kernel.name(),
                 best.workgroup[0],
                 best.workgroup[1],
                 best.tile_name(),

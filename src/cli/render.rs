@@ -87,7 +87,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     if a.backend == Backend::Cpu && a.gpu.gpu_math == crate::gpu::GpuMath::Fast {
         log::warn!("--gpu-math fast has no effect with --backend cpu");
     }
-    if a.backend == Backend::Cpu && a.gpu.kernel == crate::gpu::GpuKernel::Wavefront {
+    if a.backend == Backend::Cpu && a.gpu.kernel == Some(crate::gpu::GpuKernel::Wavefront) {
         log::warn!("--kernel wavefront has no effect with --backend cpu");
     }
     // Surveying the Vulkan devices for `auto` overlaps reading and packing.
@@ -133,7 +133,7 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
             "precision": if r.used == run::Used::Cpu { Some(a.precision) } else { None },
             "device": r.device,
             "gpu_math": (r.used == run::Used::Gpu).then_some(opts.gpu.math),
-            "gpu_kernel": (r.used == run::Used::Gpu).then_some(opts.gpu.kernel),
+            "gpu_kernel": r.kernel,
             "width": frame.width,
             "height": frame.height,
             "rays": frame.stats,

@@ -399,7 +399,18 @@ impl GpuMath {
 
 /// How the render kernel walks the ray tree (`--kernel`; docs/gpu.md,
 /// "Megakernel and wavefront"). The same image either way.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum GpuKernel {
     /// One invocation per lattice point walks its whole ray tree
@@ -504,6 +515,9 @@ pub struct GpuOptions {
     /// shape `whitted profile --save` stored for the device
     /// (`profile::apply_saved`).
     pub saved_shape: bool,
+    /// No `--kernel` was given: `render` may use the kernel `whitted
+    /// profile --save` stored for the device.
+    pub saved_kernel: bool,
 }
 
 impl Default for GpuOptions {
@@ -519,6 +533,7 @@ impl Default for GpuOptions {
             fence_timeout: None,
             pipeline_cache: PipelineCache::Default,
             saved_shape: false,
+            saved_kernel: false,
             math: GpuMath::Exact,
             prim_layout: PrimLayout::Aos,
             kernel: GpuKernel::Mega,
