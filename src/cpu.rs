@@ -32,6 +32,10 @@ pub struct Frame {
     /// Wall seconds of each phase of a GPU render, in order (upload,
     /// pipeline, warm-up, dispatch, readback); empty for the CPU.
     pub phases: Vec<(&'static str, f64)>,
+    /// Device seconds of each stage of the wavefront kernel, summed over
+    /// tiles and depths (generate, extend, shade, shadow and combine,
+    /// resolve); empty for the megakernel (one stage) and the CPU.
+    pub device_stages: Vec<(&'static str, f64)>,
 }
 
 /// The packet width `render` traces eye rays in by default (`--packet`;
@@ -141,6 +145,7 @@ pub fn render_packets<F: Real>(
         seconds: t0.elapsed().as_secs_f64(),
         device_seconds: None,
         phases: Vec::new(),
+        device_stages: Vec::new(),
     }
 }
 

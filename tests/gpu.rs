@@ -2134,8 +2134,25 @@ fn cli_kernel_wavefront() {
     let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(s["gpu_kernel"], "wavefront");
     assert_eq!(s["rays"]["eye"], 40 * 30);
-    let (o, mega_png, _) = render("mega", &[]);
+    // The stages' device times add up to the whole (where the device
+    // has a clock).
+    if let Some(total) = s["seconds"]["gpu"].as_f64() {
+        let stages = s["seconds"]["gpu_stages"].as_object().unwrap();
+        assert_eq!(stages.len(), 5, "{stages:?}");
+        let sum: f64 = stages.values().map(|v| v.as_f64().unwrap()).sum();
+        assert!(
+            (sum - total).abs() <= 1e-9 * total.max(1.0),
+            "{sum} {total}"
+        );
+        assert!(stages["extend"].as_f64().unwrap() > 0.0);
+    }
+    let (o, mega_png, mega_json) = render("mega", &[]);
     assert!(o.status.success(), "{}", stderr_of(&o));
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&mega_json).unwrap()).unwrap();
+    assert_eq!(
+        m["seconds"]["gpu_stages"].as_object().map(|o| o.len()),
+        Some(0)
+    );
     assert_eq!(
         std::fs::read(&wave_png).unwrap(),
         std::fs::read(&mega_png).unwrap()

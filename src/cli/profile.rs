@@ -133,6 +133,10 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
         if let (Some(c), Some(w)) = (cold.device_seconds, warm.device_seconds) {
             println!("  {:<10} {c:>9.4} / {w:.4} (device clock)", "gpu time");
         }
+        // The wavefront's stages, each summed over tiles and depths.
+        for ((name, c), (_, w)) in cold.device_stages.iter().zip(&warm.device_stages) {
+            println!("    {name:<14} {c:>9.4} / {w:.4} (device clock)");
+        }
         println!("  {:<10} {:>9}", "output", format!("{output:.4}"));
         println!("\n{}", profile::table(&rows));
     }

@@ -156,6 +156,12 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "build": t_build,
                 "render": frame.seconds,
                 "gpu": frame.device_seconds,
+                // The wavefront kernel's stages (empty otherwise).
+                "gpu_stages": frame
+                    .device_stages
+                    .iter()
+                    .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
+                    .collect::<serde_json::Map<_, _>>(),
                 "total": total,
             },
             "peak_memory_bytes": crate::sys::peak_memory(),

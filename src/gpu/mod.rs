@@ -1066,6 +1066,7 @@ impl Gpu {
                 lap(&mut phases, "readback");
                 phases
             },
+            device_stages: Vec::new(),
         })
     }
 

@@ -56,6 +56,21 @@ const SHADOW: usize = 3;
 const COMBINE: usize = 4;
 const RESOLVE: usize = 5;
 
+/// The submissions' kinds, as `Frame::device_stages` names them: shadow
+/// and combine go in one submission.
+const STAGE_NAMES: [&str; 5] = ["generate", "extend", "shade", "shadow+combine", "resolve"];
+
+/// The kind of a submission whose first stage is `stage`.
+fn stage_kind(stage: usize) -> usize {
+    match stage {
+        GENERATE => 0,
+        EXTEND => 1,
+        SHADE => 2,
+        SHADOW | COMBINE => 3,
+        _ => 4,
+    }
+}
+
 /// The kernels' bindings: the scene's, the output (7), the counters (8),
 /// rays (9), nodes (10), hits (14), feelers (15), the queue lengths (16).
 fn bindings() -> Vec<u32> {
@@ -264,12 +279,15 @@ impl Gpu {
         let mut stats = RayStats::default();
         let mut work = crate::trace::query::Work::default();
         let mut device_seconds: Option<f64> = None;
-        // One submission: its stages; its device time is added, its
-        // counters returned.
+        // Device seconds per submission kind (STAGE_NAMES).
+        let mut per_stage = [0.0f64; 5];
+        // One submission: its stages; its device time is added (to the
+        // total and to its kind's), its counters returned.
         let submit = |work_item: Work,
                       zero_queue: bool,
                       stages: &[(usize, Push, u64)],
-                      device_seconds: &mut Option<f64>|
+                      device_seconds: &mut Option<f64>,
+                      per_stage: &mut [f64; 5]|
          -> Result<(RayStats, crate::trace::query::Work), GpuError> {
             let groups: Vec<[u32; 3]> = stages
                 .iter()
@@ -291,6 +309,7 @@ impl Gpu {
             cmds.run_once(work_item, |d, cmd| cmds.record_stages(d, cmd, &zero, &list))?;
             if let Some(s) = cmds.elapsed()? {
                 *device_seconds.get_or_insert(0.0) += s;
+                per_stage[stage_kind(stages[0].0)] += s;
             }
             let (s, wk, cut) = super::read_counts(&counters)?;
             if cut > 0 {
@@ -311,7 +330,7 @@ impl Gpu {
             let none: Vec<(usize, Push, u64)> = (0..STAGES.len())
                 .map(|k| (k, Push::default(), lanes as u64))
                 .collect();
-            submit(Work::Warmup, true, &none, &mut None)?;
+            submit(Work::Warmup, true, &none, &mut None, &mut [0.0; 5])?;
         }
         lap(&mut phases, "warm-up");
 
@@ -345,21 +364,39 @@ impl Gpu {
                 ]
             };
             let s = [(GENERATE, push([eye, 0, 0, 0], [0, 0]), eye)];
-            add(submit(item, false, &s, &mut device_seconds)?);
+            add(submit(
+                item,
+                false,
+                &s,
+                &mut device_seconds,
+                &mut per_stage,
+            )?);
             // The queue of depth `depth`: n rays in half `half`, nodes from
             // base.
             let (mut base, mut n, mut half) = (0u64, eye, 0u64);
             while n > 0 {
                 let at = |q: &Queues, h: u64| h * q.cap_rays;
                 let p = push([n, at(&q, half), base, 0], [0, 0]);
-                add(submit(item, false, &[(EXTEND, p, n)], &mut device_seconds)?);
+                add(submit(
+                    item,
+                    false,
+                    &[(EXTEND, p, n)],
+                    &mut device_seconds,
+                    &mut per_stage,
+                )?);
                 let (kids, feelers) = loop {
                     let room = q.cap_rays.min(q.cap_nodes - (base + n));
                     let p = push(
                         [n, at(&q, half), base, at(&q, 1 - half)],
                         [room, q.cap_feelers],
                     );
-                    let counts = submit(item, true, &[(SHADE, p, n)], &mut device_seconds)?;
+                    let counts = submit(
+                        item,
+                        true,
+                        &[(SHADE, p, n)],
+                        &mut device_seconds,
+                        &mut per_stage,
+                    )?;
                     let l: [u32; 4] = bytemuck::pod_read_unaligned(queue.read(16)?);
                     let (kids, feelers) = (l[0] as u64, l[1] as u64);
                     if kids <= room && feelers <= q.cap_feelers {
@@ -376,7 +413,13 @@ impl Gpu {
                 let p = push([feelers, 0, 0, 0], [0, 0]);
                 let c = push([n, at(&q, half), base, 0], [0, 0]);
                 let stages = [(SHADOW, p, feelers), (COMBINE, c, n)];
-                add(submit(item, false, &stages, &mut device_seconds)?);
+                add(submit(
+                    item,
+                    false,
+                    &stages,
+                    &mut device_seconds,
+                    &mut per_stage,
+                )?);
                 base += n;
                 n = kids;
                 half = 1 - half;
@@ -387,6 +430,7 @@ impl Gpu {
                 false,
                 &[(RESOLVE, p, points)],
                 &mut device_seconds,
+                &mut per_stage,
             )?);
             progress(k as u64 + 1, tiles.len() as u64);
         }
@@ -415,6 +459,11 @@ impl Gpu {
             phases: {
                 lap(&mut phases, "readback");
                 phases
+            },
+            device_stages: if device_seconds.is_some() {
+                STAGE_NAMES.iter().copied().zip(per_stage).collect()
+            } else {
+                Vec::new()
             },
         })
     }
