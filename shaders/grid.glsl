@@ -247,9 +247,24 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
     for (uint visited = 0u; visited < max_cells; visited++) {
         work_cells += 1u;
         uint ci = cell_index(dda.cell);
-        uint start = cell_start[ci];
-        uint end = cell_start[ci + 1u];
-        int skip = start == end ? int(cell_skip(ci)) : 0;
+        uint start;
+        uint end;
+        int skip;
+        // The cell's one reference, inline (CELLS_PAIRS).
+        bool one = false;
+        uint single = 0u;
+        if (CELLS_PAIRS) {
+            uvec2 c = uvec2(cell_start[2u * ci], cell_start[2u * ci + 1u]);
+            skip = c.y == 0u ? int(c.x) : 0;
+            start = c.y > 1u ? c.x : 0u;
+            end = c.y > 1u ? c.x + c.y : c.y;
+            one = c.y == 1u;
+            single = c.x;
+        } else {
+            start = cell_start[ci];
+            end = cell_start[ci + 1u];
+            skip = start == end ? int(cell_skip(ci)) : 0;
+        }
         if (skip >= 2) {
             int jaxis;
             float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
@@ -263,7 +278,7 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
         float t_exit = dda_exit(dda, axis);
         uint k = start;
         for (; k < end; k++) {
-            uint r = refs[k];
+            uint r = one ? single : refs[k];
             if (uses_accel(ACCEL_HYBRID) && (r & HYBRID_NODE) != 0u) {
                 // A crowded cell's own BVH (src/pack/hybrid.rs), its
                 // leaves' primitives skipped as the list's would be.

@@ -123,6 +123,14 @@ const bool STRUCTURE_ANY = STRUCTURE == 0xFFFFFFFFu;
 // run-time code, which it put after main's return in wavefront.comp.)
 const bool PRIMS_SOA = (STRUCTURE & 0x80000200u) == 512u;
 
+// Bit 10: the grid's cells as pairs (src/gpu/mod.rs, CellLayout::Pairs;
+// the default: offsets and skip bytes, as packed). Pairs: two words per
+// cell in cell_start, (start, count) for a cell with two references or
+// more, (the reference itself, 1) for one, (skip distance, 0) for an
+// empty cell: one load per cell visit instead of two or three, and none
+// from refs for a single reference. Grid and hybrid only.
+const bool CELLS_PAIRS = (STRUCTURE & 0x80000400u) == 1024u;
+
 // Primitive i, from either layout (bit moves only: the same values).
 Prim load_prim(uint i) {
     uvec4 h, a, b, c;

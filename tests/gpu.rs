@@ -622,6 +622,97 @@ fn prim_layouts_do_not_change_the_image() {
     common::assert_no_validation_errors();
 }
 
+/// `--cell-layout pairs` (the grid's cells as (start, count) pairs, one
+/// reference inline, the skip in the pair): the same image, counts and
+/// work as the packed offsets on every scene file under the grid, on
+/// random spheres and on gears under the grid and the hybrid (which has empty, single and
+/// crowded cells, and hybrid cells whose one reference is a node), and
+/// the CPU mirror's bit for bit on lavapipe.
+#[test]
+fn cell_layouts_do_not_change_the_image() {
+    use whitted::gpu::CellLayout;
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    let gears = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Gears, Some(1)).unwrap();
+    let mut cases: Vec<(String, whitted::pack::Packed)> = Vec::new();
+    for accel in [Accel::Grid, Accel::Hybrid] {
+        let settings = Settings {
+            accel,
+            ..common::small(48, 36)
+        };
+        // The scene files under the grid (the hybrid's cells are the
+        // generated scenes' below).
+        for f in scene_files().into_iter().filter(|_| accel == Accel::Grid) {
+            cases.push((
+                format!("{} {accel:?}", f.display()),
+                common::load(&f, &settings),
+            ));
+        }
+        for (name, scene) in [
+            ("random 2000", whitted::gen::random_spheres(2000, 8)),
+            ("gears 1", gears.clone()),
+        ] {
+            let hybrid_one = Settings {
+                hybrid_cell: 1,
+                ..settings.clone()
+            };
+            for s in [&settings, &hybrid_one] {
+                let p = whitted::pack::pack(&scene, s).unwrap();
+                cases.push((format!("{name} {accel:?} cell {}", s.hybrid_cell), p));
+            }
+        }
+    }
+    let mut inline_nodes = 0;
+    for (name, p) in &cases {
+        assert!(CellLayout::Pairs.applies(p), "{name}");
+        // The pairs say what the offsets say.
+        let words = CellLayout::Pairs.words(p);
+        let n = p.globals.grid_dims[3] as usize;
+        assert_eq!(words.len(), 2 * n, "{name}");
+        for ci in 0..n {
+            let (start, end) = (p.cell_start[ci], p.cell_start[ci + 1]);
+            let pair = [words[2 * ci], words[2 * ci + 1]];
+            let skip = (p.cell_start[n + 1 + ci / 4] >> (8 * (ci % 4))) & 255;
+            let want = match end - start {
+                0 => [skip, 0],
+                1 => [p.refs[start as usize], 1],
+                c => [start, c],
+            };
+            assert_eq!(pair, want, "{name}: cell {ci}");
+            if pair[1] == 1 && pair[0] & whitted::constants::HYBRID_NODE != 0 {
+                inline_nodes += 1;
+            }
+        }
+        let with = |cell_layout| GpuOptions {
+            cell_layout,
+            ..Default::default()
+        };
+        let offsets = g.render(p, &with(CellLayout::Offsets), &|_, _| {}).unwrap();
+        let pairs = g.render(p, &with(CellLayout::Pairs), &|_, _| {}).unwrap();
+        assert!(bits(&offsets) == bits(&pairs), "{name}: the layouts differ");
+        assert_eq!(offsets.stats, pairs.stats, "{name}");
+        assert_eq!(offsets.work, pairs.work, "{name}");
+        if exact {
+            let cpu = cpu::render(p, &|_, _| {});
+            assert!(
+                bits(&pairs) == bits(&cpu),
+                "{name}: pairs against the CPU mirror"
+            );
+        }
+    }
+    // Some hybrid cell's one reference is its own BVH: the inline path
+    // meets a node, not only primitives.
+    assert!(inline_nodes > 0);
+    // Where the pairs would not fit the device's buffer range, the offsets.
+    let p = &cases[0].1;
+    let pairs = CellLayout::Pairs.bytes(p);
+    assert_eq!(pairs, 8 * p.globals.grid_dims[3] as u64);
+    assert_eq!(CellLayout::Pairs.fitting(p, pairs), CellLayout::Pairs);
+    assert_eq!(CellLayout::Pairs.fitting(p, pairs - 1), CellLayout::Offsets);
+    assert_eq!(CellLayout::Offsets.fitting(p, 0), CellLayout::Offsets);
+    common::assert_no_validation_errors();
+}
+
 #[test]
 fn over_the_device_limits_is_a_clear_error() {
     let Some(g) = common::gpu() else { return };

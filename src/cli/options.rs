@@ -209,6 +209,14 @@ pub struct GpuArgs {
     /// (docs/profiling.md, "Memory layout of the primitives").
     #[arg(long, value_enum, value_name = "LAYOUT", default_value_t = gpu::PrimLayout::Aos)]
     pub prim_layout: gpu::PrimLayout,
+    /// How the grid's cells lie in the GPU's buffer: `pairs` (start and
+    /// count per cell, a single reference inline, the skip in the pair:
+    /// one load per cell; offsets instead where pairs would not fit the
+    /// device) or `offsets` (as packed: an offset per cell into the
+    /// reference list, a skip byte per cell beside them). The same image;
+    /// grid and hybrid only (docs/profiling.md, "The grid's cell lists").
+    #[arg(long, value_enum, value_name = "LAYOUT", default_value_t = gpu::CellLayout::Pairs)]
+    pub cell_layout: gpu::CellLayout,
     /// How the GPU walks the ray tree: `mega`, one invocation per pixel
     /// walking its whole tree (one dispatch per tile), or `wavefront`,
     /// queues of rays processed stage by stage (generate, closest hit,
@@ -238,6 +246,7 @@ impl GpuArgs {
             fence_timeout: self.fence_timeout,
             math: self.gpu_math,
             prim_layout: self.prim_layout,
+            cell_layout: self.cell_layout,
             kernel: self.kernel.unwrap_or_default(),
             saved_kernel: self.kernel.is_none(),
             ..Default::default()

@@ -16,7 +16,7 @@
 use super::dispatch::{self, Commands, Stage, Work};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
-use super::{mib, prims_key, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS};
+use super::{layout_key, mib, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS};
 use crate::constants::SAMPLING_CORNERS;
 use crate::cpu::{self, Frame};
 use crate::pack::Packed;
@@ -214,7 +214,7 @@ impl Gpu {
         let (lw, lh) = if corners { (w + 1, h + 1) } else { (w, h) };
         let n_out = lw as u64 * lh as u64;
         let out_bytes = n_out * 16;
-        self.check_fits(packed, n_out)?;
+        self.check_fits(packed, n_out, opts.cell_layout)?;
         self.check_loops(packed)?;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
         let mut clock = Instant::now();
@@ -228,7 +228,7 @@ impl Gpu {
             (0, wx),
             (1, wy),
             (2, g.trace[1]),
-            (3, structure_key(g.flags) | prims_key(opts.prim_layout)),
+            (3, structure_key(g.flags) | layout_key(opts, packed)),
         ];
         let binds = bindings();
         let kernels: Vec<Arc<Kernel>> = STAGES
@@ -246,7 +246,7 @@ impl Gpu {
         lap(&mut phases, "pipeline");
 
         let cmds = Commands::new(&self.ctx)?;
-        let scene = self.upload_scene(&cmds, packed, opts.staging, opts.prim_layout)?;
+        let scene = self.upload_scene(&cmds, packed, opts)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
         let counters = Buffer::readback(&self.ctx, "counters", 48)?;
         let queue = Buffer::readback(&self.ctx, "wavefront queue lengths", 16)?;
