@@ -2269,4 +2269,26 @@ fn cli_kernel_wavefront() {
         stderr_of(&o)
     );
     assert!(!png.exists());
+    // A megakernel variant cannot stand in for the wavefront's stages.
+    let o = whitted()
+        .env("WHITTED_RENDER_SPV", dir.path().join("variant.spv"))
+        .args([
+            "render",
+            "scenes/showcase.toml",
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ])
+        .args(["--backend", "gpu", "--kernel", "wavefront", "-q", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
+    assert!(
+        stderr_of(&o).contains("WHITTED_RENDER_SPV"),
+        "{}",
+        stderr_of(&o)
+    );
+    assert!(!png.exists());
 }

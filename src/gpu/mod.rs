@@ -1026,6 +1026,13 @@ impl Gpu {
                     "--kernel wavefront has only the exact arithmetic: drop --gpu-math fast".into(),
                 ));
             }
+            if std::env::var_os("WHITTED_RENDER_SPV").is_some_and(|v| !v.is_empty()) {
+                return Err(GpuError::Setting(
+                    "WHITTED_RENDER_SPV replaces the megakernel, and --kernel wavefront runs its \
+                     own stages: unset the variable or use --kernel mega"
+                        .into(),
+                ));
+            }
             return self.guarded(|| self.render_wavefront(packed, opts, progress));
         }
         if let Some(variant) = render_variant()? {
