@@ -182,26 +182,16 @@ impl Buffer {
             MemoryLocation::CpuToGpu,
         )?;
         staging.write(data)?;
-        let size = data.len() as u64;
+        let region = [vk::BufferCopy::default().size(data.len() as u64)];
         cmds.run_once(Work::Upload(name), |d, cmd| {
-            let region = [vk::BufferCopy::default().size(size)];
-            // SAFETY: both buffers are live, large enough, and not in use.
-            unsafe { d.cmd_copy_buffer(cmd, staging.buffer, buf.buffer, &region) };
-            let barrier = [vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ)];
-            // SAFETY: a global barrier in a recording command buffer.
-            unsafe {
-                d.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::DependencyFlags::empty(),
-                    &barrier,
-                    &[],
-                    &[],
-                )
-            };
+            record_copy(
+                d,
+                cmd,
+                &staging,
+                &buf,
+                &region,
+                vk::AccessFlags::SHADER_READ,
+            )
         })?;
         Ok(buf)
     }
@@ -255,24 +245,14 @@ impl Buffer {
             return Ok(new);
         }
         cmds.run_once(Work::Upload(name), |d, cmd| {
-            // SAFETY: both buffers are live and not in use; every region
-            // lies inside both (the caller's sizes).
-            unsafe { d.cmd_copy_buffer(cmd, self.buffer, new.buffer, &copies) };
-            let barrier = [vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)];
-            // SAFETY: a global barrier in a recording command buffer.
-            unsafe {
-                d.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::DependencyFlags::empty(),
-                    &barrier,
-                    &[],
-                    &[],
-                )
-            };
+            record_copy(
+                d,
+                cmd,
+                self,
+                &new,
+                &copies,
+                vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+            )
         })?;
         Ok(new)
     }
@@ -310,6 +290,38 @@ impl Drop for Buffer {
                 .free(a);
         }
     }
+}
+
+/// Records copies of `regions` from `src` to `dst`, then a barrier that
+/// makes them visible to compute shaders with `access`. The caller keeps
+/// both buffers live and idle until the submission ends, and every region
+/// lies inside both.
+fn record_copy(
+    d: &ash::Device,
+    cmd: vk::CommandBuffer,
+    src: &Buffer,
+    dst: &Buffer,
+    regions: &[vk::BufferCopy],
+    access: vk::AccessFlags,
+) {
+    // SAFETY: both buffers are live and not in use, the regions inside
+    // both (the caller's contract), and `cmd` is recording.
+    unsafe { d.cmd_copy_buffer(cmd, src.buffer, dst.buffer, regions) };
+    let barrier = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(access)];
+    // SAFETY: a global barrier in a recording command buffer.
+    unsafe {
+        d.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::DependencyFlags::empty(),
+            &barrier,
+            &[],
+            &[],
+        )
+    };
 }
 
 #[cfg(test)]

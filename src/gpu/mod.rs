@@ -749,6 +749,43 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     prims | u32::from(opts.cell_layout.applies(p)) << 10
 }
 
+/// A render's image size and sample lattice (`Gpu::lattice`): pixels w×h,
+/// lattice lw×lh (one more each way under corner sampling), the output
+/// buffer's bytes.
+struct Lattice {
+    w: u32,
+    h: u32,
+    lw: u32,
+    lh: u32,
+    corners: bool,
+    out_bytes: u64,
+}
+
+/// The image from a kernel's output lattice (`vec4 samples[]`, binding
+/// 7): each sample's rgb, the corners resolved to pixels under corner
+/// sampling.
+fn read_pixels(
+    samples: &Buffer,
+    bytes: u64,
+    corners: bool,
+    w: u32,
+    h: u32,
+) -> Result<Vec<[f32; 3]>, GpuError> {
+    let lattice: Vec<[f32; 3]> = samples
+        .read(bytes as usize)?
+        .chunks_exact(16)
+        .map(|c| {
+            let v: [f32; 4] = bytemuck::pod_read_unaligned(c);
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    Ok(if corners {
+        cpu::resolve_corners(&lattice, w, h)
+    } else {
+        lattice
+    })
+}
+
 /// An open device with its kernels, reusable across renders and probes.
 pub struct Gpu {
     /// Held through each render or probe: descriptor sets and the queue
@@ -909,6 +946,28 @@ impl Gpu {
         Ok(())
     }
 
+    /// The output lattice of a render of `packed`, after the checks every
+    /// render kernel needs: the workgroup shape, the buffers against the
+    /// device's limits, llvmpipe's loop budget.
+    fn lattice(&self, packed: &Packed, opts: &GpuOptions) -> Result<Lattice, GpuError> {
+        self.check_workgroup(opts)?;
+        let g = &packed.globals;
+        let (w, h) = (g.image[0], g.image[1]);
+        let corners = g.image[3] == SAMPLING_CORNERS;
+        let (lw, lh) = if corners { (w + 1, h + 1) } else { (w, h) };
+        let n = lw as u64 * lh as u64;
+        self.check_fits(packed, n, opts.cell_layout)?;
+        self.check_loops(packed)?;
+        Ok(Lattice {
+            w,
+            h,
+            lw,
+            lh,
+            corners,
+            out_bytes: n * 16,
+        })
+    }
+
     fn upload_scene(
         &self,
         cmds: &Commands,
@@ -1052,15 +1111,15 @@ impl Gpu {
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
-        self.check_workgroup(opts)?;
+        let Lattice {
+            w,
+            h,
+            lw,
+            lh,
+            corners,
+            out_bytes,
+        } = self.lattice(packed, opts)?;
         let g = &packed.globals;
-        let (w, h) = (g.image[0], g.image[1]);
-        let corners = g.image[3] == SAMPLING_CORNERS;
-        let (lw, lh) = if corners { (w + 1, h + 1) } else { (w, h) };
-        let n = lw as u64 * lh as u64;
-        let out_bytes = n * 16;
-        self.check_fits(packed, n, opts.cell_layout)?;
-        self.check_loops(packed)?;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
         let mut clock = Instant::now();
         let mut lap = |phases: &mut Vec<(&'static str, f64)>, what: &'static str| {
@@ -1156,19 +1215,7 @@ impl Gpu {
             progress(k as u64 + 1, tiles.len() as u64);
         }
         lap(&mut phases, "dispatch");
-        let raw = samples.read(out_bytes as usize)?;
-        let lattice: Vec<[f32; 3]> = raw
-            .chunks_exact(16)
-            .map(|c| {
-                let v: [f32; 4] = bytemuck::pod_read_unaligned(c);
-                [v[0], v[1], v[2]]
-            })
-            .collect();
-        let pixels = if corners {
-            cpu::resolve_corners(&lattice, w, h)
-        } else {
-            lattice
-        };
+        let pixels = read_pixels(&samples, out_bytes, corners, w, h)?;
         Ok(Frame {
             width: w,
             height: h,

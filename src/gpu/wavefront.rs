@@ -16,9 +16,10 @@
 use super::dispatch::{self, Commands, Stage, Work};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
-use super::{layout_key, mib, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS};
-use crate::constants::SAMPLING_CORNERS;
-use crate::cpu::{self, Frame};
+use super::{
+    layout_key, mib, read_pixels, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS,
+};
+use crate::cpu::Frame;
 use crate::pack::Packed;
 use crate::trace::RayStats;
 use std::sync::Arc;
@@ -207,15 +208,15 @@ impl Gpu {
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
-        self.check_workgroup(opts)?;
+        let super::Lattice {
+            w,
+            h,
+            lw,
+            lh,
+            corners,
+            out_bytes,
+        } = self.lattice(packed, opts)?;
         let g = &packed.globals;
-        let (w, h) = (g.image[0], g.image[1]);
-        let corners = g.image[3] == SAMPLING_CORNERS;
-        let (lw, lh) = if corners { (w + 1, h + 1) } else { (w, h) };
-        let n_out = lw as u64 * lh as u64;
-        let out_bytes = n_out * 16;
-        self.check_fits(packed, n_out, opts.cell_layout)?;
-        self.check_loops(packed)?;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
         let mut clock = Instant::now();
         let mut lap = |phases: &mut Vec<(&'static str, f64)>, what: &'static str| {
@@ -435,19 +436,7 @@ impl Gpu {
             progress(k as u64 + 1, tiles.len() as u64);
         }
         lap(&mut phases, "dispatch");
-        let raw = samples.read(out_bytes as usize)?;
-        let lattice: Vec<[f32; 3]> = raw
-            .chunks_exact(16)
-            .map(|c| {
-                let v: [f32; 4] = bytemuck::pod_read_unaligned(c);
-                [v[0], v[1], v[2]]
-            })
-            .collect();
-        let pixels = if corners {
-            cpu::resolve_corners(&lattice, w, h)
-        } else {
-            lattice
-        };
+        let pixels = read_pixels(&samples, out_bytes, corners, w, h)?;
         Ok(Frame {
             width: w,
             height: h,
