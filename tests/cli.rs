@@ -664,3 +664,49 @@ fn packet_widths_render_one_image() {
     assert!(String::from_utf8_lossy(&a.get_output().stderr).contains("--packet"));
     assert!(!out.exists());
 }
+
+/// `--stats` says how much of the grid the hybrid nested: the cells that
+/// hold a BVH (each listed more than --hybrid-cell primitives) and their
+/// references; zero for the plain grid.
+#[test]
+fn stats_report_the_hybrids_nested_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("balls.nff");
+    Command::cargo_bin("whitted")
+        .unwrap()
+        .args(["-q", "generate", "balls", "--size", "2", "-o"])
+        .arg(&scene)
+        .assert()
+        .success();
+    let stats_of = |extra: &[&str]| {
+        let stats = dir.path().join("s.json");
+        Command::cargo_bin("whitted")
+            .unwrap()
+            .args([
+                "-q",
+                "render",
+                "--backend",
+                "cpu",
+                "--width",
+                "16",
+                "--height",
+                "16",
+            ])
+            .args(extra)
+            .arg(&scene)
+            .arg("-o")
+            .arg(dir.path().join("o.png"))
+            .arg("--stats")
+            .arg(&stats)
+            .assert()
+            .success();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let n = |k: &str| j["accel"][k].as_u64().unwrap();
+        (n("hybrid_cells"), n("hybrid_refs"))
+    };
+    let (cells, refs) = stats_of(&["--accel", "hybrid", "--hybrid-cell", "2"]);
+    assert!(cells >= 1, "{cells}");
+    assert!(refs > 2 * cells, "{cells} cells, {refs} refs");
+    assert_eq!(stats_of(&["--accel", "grid"]), (0, 0));
+}

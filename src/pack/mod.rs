@@ -237,6 +237,10 @@ pub struct AccelInfo {
     pub leaves: usize,
     pub depth: u32,
     pub max_leaf: u32,
+    /// The hybrid (0 otherwise): the grid cells that hold a BVH of their
+    /// own, and the references they list, now in those BVHs' leaves.
+    pub hybrid_cells: u64,
+    pub hybrid_refs: u64,
 }
 
 /// What the grid build cost (all zero but `duplicates` when the BVH is
@@ -971,6 +975,8 @@ pub fn pack_with_progress(
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
     // The octree's shape (leaves, depth, most in a leaf), when built.
     let mut octree_shape = None;
+    // The hybrid's nested cells and their references, when built.
+    let mut nested_counts = (0, 0);
     let max_refs = |cells: u64| need.max_refs(budget, cells);
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
@@ -1070,7 +1076,10 @@ pub fn pack_with_progress(
             };
             budget.check(&with)?;
             tree = match hybrid::nest(&mut g, &bounds, settings.hybrid_cell) {
-                Ok(nested) => nested.tree,
+                Ok(nested) => {
+                    nested_counts = (nested.cells, nested.refs);
+                    nested.tree
+                }
                 Err(nodes) => {
                     return Err(PackError::TooMany {
                         what: "hybrid BVH nodes",
@@ -1252,6 +1261,8 @@ pub fn pack_with_progress(
         leaves: leaves as usize,
         depth,
         max_leaf,
+        hybrid_cells: nested_counts.0,
+        hybrid_refs: nested_counts.1,
     };
     let lightbuf = LightBufInfo {
         res: lb.res,
