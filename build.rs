@@ -146,12 +146,26 @@ fn tidy_log(log: &str, file: &str) -> String {
 type Defines = &'static [(&'static str, Option<&'static str>)];
 
 /// The kernels built from one `.comp`: (suffix of the output's stem,
-/// `#define`s). Only `render.comp` has a fast variant; `probe.comp` tests
+/// `#define`s). Only `render.comp` has fast and several-points-a-lane
+/// variants; `probe.comp` tests
 /// the twins bit for bit and stays exact (it refuses WHITTED_FAST_MATH);
 /// `wavefront.comp` is built once per stage.
 fn variants(stem: &str) -> &'static [(&'static str, Defines)] {
     match stem {
-        "render" => &[("", &[]), ("_fast", &[("WHITTED_FAST_MATH", Some("1"))])],
+        // `_lanes`: several lattice points an invocation (`--lane-pixels`),
+        // a module of its own so the default one stays as small.
+        "render" => &[
+            ("", &[]),
+            ("_fast", &[("WHITTED_FAST_MATH", Some("1"))]),
+            ("_lanes", &[("WHITTED_LANES", Some("1"))]),
+            (
+                "_lanes_fast",
+                &[
+                    ("WHITTED_FAST_MATH", Some("1")),
+                    ("WHITTED_LANES", Some("1")),
+                ],
+            ),
+        ],
         // One module per stage of the wavefront kernel (WF_STAGE; the
         // stage numbers are wavefront.comp's).
         "wavefront" => &[

@@ -50,6 +50,143 @@ vec3 render_pixel(uint px, uint py) {
     return mean;
 }
 
+#ifdef WHITTED_LANES
+// Built as render_lanes.spv (WHITTED_LANES, build.rs): the lattice points
+// one invocation renders are specialization constant 4 (`--lane-pixels`
+// above 1; docs/profiling.md, "Persistent lanes"); render.spv renders one
+// each, as above. K > 1: the first ceil(lanes / K) invocations of a workgroup take
+// K of its points each (the rest return at once), and an invocation whose
+// sample's ray tree ends starts its next sample inside the same ray loop,
+// so its lanes stop waiting for their neighbours' deeper trees. Each
+// point's sums keep render_pixel's and trace_ray's order: the same image.
+layout(constant_id = 4) const uint LANE_PIXELS = 1u;
+
+// The mean of `spp` samples summed in `sum` (render_pixel's last steps).
+vec3 mean_of(vec3 sum, uint spp) {
+    PRECISE float inv = 1.0 / float(spp);
+    PRECISE vec3 mean = sum * inv;
+    return mean;
+}
+
+// Lattice point j of this invocation's LANE_PIXELS: its coordinates, and
+// whether it lies in the tile and the lattice.
+bool lane_point(uvec2 base, uint workers, uint j, uint lw, uint lh, out uint x, out uint y) {
+    uint lanes = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
+    uint idx = gl_LocalInvocationIndex + j * workers;
+    uvec2 gid = base + uvec2(idx % gl_WorkGroupSize.x, idx / gl_WorkGroupSize.x);
+    x = tile.x + gid.x;
+    y = tile.y + gid.y;
+    return idx < lanes && gid.x < tile.z && gid.y < tile.w && x < lw && y < lh;
+}
+
+// The next of this invocation's points from j on that lies in the image
+// (LANE_PIXELS when none is left).
+uint lane_next(uvec2 base, uint workers, uint j, uint lw, uint lh, out uint x, out uint y) {
+    while (j < LANE_PIXELS && !lane_point(base, workers, j, lw, lh, x, y)) {
+        j++;
+    }
+    return j;
+}
+
+// LANE_PIXELS > 1: this invocation's points, one ray loop for all their
+// samples' trees (trace_ray's body, the sample and pixel sums between).
+void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
+    uint lanes = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
+    uint workers = (lanes + LANE_PIXELS - 1u) / LANE_PIXELS;
+    if (gl_LocalInvocationIndex >= workers) {
+        return;
+    }
+    uint spp = corners ? 1u : g.image.z;
+    uint px = 0u;
+    uint py = 0u;
+    uint j = lane_next(base, workers, 0u, lw, lh, px, py);
+    bool more = j < LANE_PIXELS;
+    Entry stack[STACK_SIZE];
+    uint sp = 0u;
+    vec3 color = vec3(0.0);
+    vec3 sum = vec3(0.0);
+    uint s = 0u;
+    bool started = false;
+    while (more) {
+        if (sp == 0u) {
+            if (started) {
+                // A sample's tree is done: render_pixel's sum, and the
+                // point's mean once all its samples are.
+                if (corners) {
+                    samples[py * lw + px] = vec4(color, 1.0);
+                    s = spp;
+                } else {
+                    sum = add_exact(sum, color);
+                    s += 1u;
+                    if (s == spp) {
+                        samples[py * lw + px] = vec4(mean_of(sum, spp), 1.0);
+                    }
+                }
+                if (s == spp) {
+                    sum = vec3(0.0);
+                    s = 0u;
+                    j = lane_next(base, workers, j + 1u, lw, lh, px, py);
+                    if (j == LANE_PIXELS) {
+                        more = false;
+                        break;
+                    }
+                }
+            }
+            started = true;
+            color = vec3(0.0);
+            // trace_sample
+            stats.eye += 1u;
+            vec3 d;
+            if (corners) {
+                d = eye_dir(g, float(px), float(py));
+            } else {
+                vec2 xy = sample_pos(g, px, py, s);
+                d = eye_dir(g, xy.x, xy.y);
+            }
+            stack[0] = Entry(vec3(0.0), d, vec3(1.0), vec3(0.0), 0u);
+            sp = 1u;
+        }
+        // trace_ray's loop body, unchanged.
+        sp -= 1u;
+        Entry e = stack[sp];
+        Ray r = Ray(e.o, e.d);
+        RayPre pre = ray_pre(e.d);
+        Hit h;
+        uint pi;
+        if (!closest_hit(r, pre, INF, h, pi)) {
+            vec3 c;
+            if (miss_contribution(e, c)) {
+                color = add_exact(color, c);
+            }
+            continue;
+        }
+        if (e.depth == 0u) {
+            stats.eye_hit += 1u;
+        }
+        Surface sf = surface_at(e, h, pi);
+        vec3 local_ = shade(sf.mat, sf.p, e.d, sf.n, sf.ngf, sf.front, sf.weighted);
+        if (sf.weighted) {
+            color = add_weighted(color, sf.w, local_);
+        }
+        Entry tr;
+        Entry rf;
+        uint kids = spawn(e, sf, tr, rf);
+        if ((kids & 1u) != 0u) {
+            stack[sp] = tr;
+            sp += 1u;
+        }
+        if ((kids & 2u) != 0u) {
+            stack[sp] = rf;
+            sp += 1u;
+        }
+    }
+    if (more) {
+        // The loop was cut short (lavapipe's loop budget).
+        loops_cut += 1u;
+    }
+}
+#endif
+
 void main() {
     // Workgroup k of the dispatch renders group (k · stride) mod n of the
     // tile: a permutation, since the stride is coprime to n.
@@ -57,11 +194,15 @@ void main() {
     uint n = ng.x * ng.y;
     uint k = gl_WorkGroupID.y * ng.x + gl_WorkGroupID.x;
     uint p = (k * order.x) % n;
-    uvec2 gid = uvec2(p % ng.x, p / ng.x) * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy;
+    uvec2 base = uvec2(p % ng.x, p / ng.x) * gl_WorkGroupSize.xy;
     shadow_cache_reset();
     bool corners = g.image.w == SAMPLING_CORNERS;
     uint lw = corners ? g.image.x + 1u : g.image.x;
     uint lh = corners ? g.image.y + 1u : g.image.y;
+#ifdef WHITTED_LANES
+    render_lane(base, corners, lw, lh);
+#else
+    uvec2 gid = base + gl_LocalInvocationID.xy;
     uint x = tile.x + gid.x;
     uint y = tile.y + gid.y;
     if (gid.x < tile.z && gid.y < tile.w && x < lw && y < lh) {
@@ -73,6 +214,7 @@ void main() {
         }
         samples[y * lw + x] = vec4(c, 1.0);
     }
+#endif
     // Every invocation (in range or not) reaches the reductions.
     flush_counts();
 }

@@ -713,6 +713,63 @@ fn cell_layouts_do_not_change_the_image() {
     common::assert_no_validation_errors();
 }
 
+/// `--lane-pixels K` (render_lanes.spv: K lattice points an invocation,
+/// each sample started inside one ray loop) gives the one-point kernel's
+/// image and ray counts on every scene file, with odd workgroup shapes and
+/// tiles, several samples and corner sampling; and the CPU mirror's bit
+/// for bit on lavapipe.
+#[test]
+fn lane_pixels_do_not_change_the_image() {
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    for path in scene_files() {
+        for (spp, sampling, accel) in [
+            (3, Sampling::Centers, Accel::Bvh),
+            (1, Sampling::Corners, Accel::Grid),
+        ] {
+            let p = common::load(
+                &path,
+                &Settings {
+                    accel,
+                    spp,
+                    sampling,
+                    ..common::small(37, 23)
+                },
+            );
+            let with = |lane_pixels| GpuOptions {
+                lane_pixels,
+                ..Default::default()
+            };
+            let one = g.render(&p, &with(1), &|_, _| {}).unwrap();
+            // 0: the device's default (2 on lavapipe).
+            let default = g.render(&p, &with(0), &|_, _| {}).unwrap();
+            assert!(bits(&one) == bits(&default), "{}", path.display());
+            for (k, workgroup, tile) in [(2, [8, 8], 256), (3, [3, 5], 16), (8, [1, 1], 8)] {
+                let name = format!("{} spp {spp} K {k} {workgroup:?}", path.display());
+                let f = g
+                    .render(
+                        &p,
+                        &GpuOptions {
+                            lane_pixels: k,
+                            workgroup,
+                            tile,
+                            ..Default::default()
+                        },
+                        &|_, _| {},
+                    )
+                    .unwrap();
+                assert!(bits(&one) == bits(&f), "{name}: not the one-point image");
+                assert_eq!(one.stats, f.stats, "{name}");
+                if exact {
+                    let cpu = cpu::render(&p, &|_, _| {});
+                    assert!(bits(&f) == bits(&cpu), "{name}: against the CPU mirror");
+                }
+            }
+        }
+    }
+    common::assert_no_validation_errors();
+}
+
 #[test]
 fn over_the_device_limits_is_a_clear_error() {
     let Some(g) = common::gpu() else { return };

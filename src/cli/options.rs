@@ -227,6 +227,15 @@ pub struct GpuArgs {
     /// stored for the device; -v says so]
     #[arg(long, value_enum, value_name = "KERNEL")]
     pub kernel: Option<gpu::GpuKernel>,
+    /// Lattice points one invocation of the megakernel renders (1 to 64)
+    /// [default: 2 on a CPU Vulkan device such as lavapipe, 1 on a GPU]:
+    /// above 1, an invocation whose sample's ray tree ends starts its next
+    /// sample in the same loop instead of waiting for its neighbours'
+    /// deeper trees. The same image (docs/profiling.md, "Persistent
+    /// lanes"); lavapipe's loop budget is then shared by those points.
+    #[arg(long, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=gpu::MAX_LANE_PIXELS as i64))]
+    pub lane_pixels: Option<u32>,
 }
 
 impl GpuArgs {
@@ -249,6 +258,7 @@ impl GpuArgs {
             cell_layout: self.cell_layout,
             kernel: self.kernel.unwrap_or_default(),
             saved_kernel: self.kernel.is_none(),
+            lane_pixels: self.lane_pixels.unwrap_or(0),
             ..Default::default()
         }
     }

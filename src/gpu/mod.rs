@@ -224,6 +224,22 @@ pub(crate) fn mib(bytes: u64) -> String {
 
 /// Default edge of a dispatch tile, in lattice samples.
 pub const DEFAULT_TILE: u32 = 256;
+
+/// The most lattice points `--lane-pixels` gives one invocation.
+pub const MAX_LANE_PIXELS: u32 = 64;
+
+/// The lattice points one invocation renders: `asked`, or for 0 by the
+/// device's class: 2 on a CPU device (lavapipe: 2-22 % less device time
+/// on 7 of 9 scenes and 0.6 s less pipeline creation a process,
+/// docs/profiling.md, "Persistent lanes"), 1 elsewhere until measured on
+/// a GPU.
+pub fn lane_pixels_for(asked: u32, kind: DeviceKind) -> u32 {
+    match (asked, kind) {
+        (0, DeviceKind::Cpu) => 2,
+        (0, _) => 1,
+        (k, _) => k.min(MAX_LANE_PIXELS),
+    }
+}
 /// Default workgroup shape (specialization constants 0 and 1).
 pub const DEFAULT_WORKGROUP: [u32; 2] = [8, 8];
 /// Most eye rays one tile traces: keeps every submission short. Deep
@@ -465,10 +481,14 @@ impl GpuMath {
 
     /// The render kernel's name (the SPIR-V file build.rs wrote, the key
     /// of `Gpu`'s kernels) and module.
-    fn render_kernel(self) -> (&'static str, &'static [u8]) {
-        match self {
-            GpuMath::Exact => ("render", shaders::RENDER),
-            GpuMath::Fast => ("render_fast", shaders::RENDER_FAST),
+    /// `lanes`: the module that renders several lattice points an
+    /// invocation (`--lane-pixels` above 1).
+    fn render_kernel(self, lanes: bool) -> (&'static str, &'static [u8]) {
+        match (self, lanes) {
+            (GpuMath::Exact, false) => ("render", shaders::RENDER),
+            (GpuMath::Fast, false) => ("render_fast", shaders::RENDER_FAST),
+            (GpuMath::Exact, true) => ("render_lanes", shaders::RENDER_LANES),
+            (GpuMath::Fast, true) => ("render_lanes_fast", shaders::RENDER_LANES_FAST),
         }
     }
 }
@@ -589,6 +609,11 @@ pub struct GpuOptions {
     pub cell_layout: CellLayout,
     /// The megakernel or the wavefront kernel.
     pub kernel: GpuKernel,
+    /// Lattice points one invocation of the megakernel renders, each
+    /// sample started inside one ray loop (`LANE_PIXELS`, render.comp;
+    /// 1..=`MAX_LANE_PIXELS`; the wavefront ignores it). 0: by the
+    /// device's class (`lane_pixels_for`).
+    pub lane_pixels: u32,
     /// Neither `--workgroup` nor `--tile` was given: `render` may use the
     /// shape `whitted profile --save` stored for the device
     /// (`profile::apply_saved`).
@@ -615,6 +640,7 @@ impl Default for GpuOptions {
             math: GpuMath::Exact,
             prim_layout: PrimLayout::Aos,
             cell_layout: CellLayout::Pairs,
+            lane_pixels: 0,
             kernel: GpuKernel::Mega,
         }
     }
@@ -717,8 +743,8 @@ type RenderPush = [u32; 8];
 type ProbePush = [u32; 4];
 
 /// Kernels by (name: `render`, `render_fast`, `render_variant` or `probe`, specialization
-/// constants 0..=3): the exact and the fast render kernels never share one.
-type KernelCache = Mutex<HashMap<(&'static str, [u32; 4]), Arc<Kernel>>>;
+/// constants 0..=4): the exact and the fast render kernels never share one.
+type KernelCache = Mutex<HashMap<(&'static str, [u32; 5]), Arc<Kernel>>>;
 
 /// Specialization constant 3 of `render.comp` (`STRUCTURE`,
 /// shaders/layout.glsl) for a scene packed with `flags`
@@ -889,7 +915,7 @@ impl Gpu {
         push_size: u32,
         spec: &[(u32, u32)],
     ) -> Result<Arc<Kernel>, GpuError> {
-        let mut key = [0u32; 4];
+        let mut key = [0u32; 5];
         for &(id, v) in spec {
             key[id as usize] = v;
         }
@@ -1098,7 +1124,8 @@ impl Gpu {
             return self
                 .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
         }
-        let (name, spirv) = opts.math.render_kernel();
+        let lane_pixels = lane_pixels_for(opts.lane_pixels, self.info().kind);
+        let (name, spirv) = opts.math.render_kernel(lane_pixels > 1);
         self.guarded(|| self.render_with(spirv, name, packed, opts, progress))
     }
 
@@ -1136,6 +1163,7 @@ impl Gpu {
                 (1, opts.workgroup[1]),
                 (2, g.trace[1]),
                 (3, structure_key(g.flags) | layout_key(opts, packed)),
+                (4, lane_pixels_for(opts.lane_pixels, self.info().kind)),
             ],
         )?;
         lap(&mut phases, "pipeline");

@@ -9,6 +9,11 @@ pub const RENDER: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/render.spv")
 /// so the driver may reorder and fuse its float arithmetic
 /// (`--gpu-math fast`).
 pub const RENDER_FAST: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/render_fast.spv"));
+/// `shaders/render.comp` with `WHITTED_LANES`: several lattice points an
+/// invocation (`--lane-pixels`), exact and fast.
+pub const RENDER_LANES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/render_lanes.spv"));
+pub const RENDER_LANES_FAST: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/render_lanes_fast.spv"));
 /// `shaders/probe.comp`: test kernels running one function on many inputs
 /// (always exact).
 pub const PROBE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv"));
