@@ -1360,7 +1360,9 @@ fn every_injected_fault_is_one_clear_error() {
             ),
             Fault::PipelineRefused => (
                 matches!(e, GpuError::PipelineRefused { .. }),
-                "refused to build the render kernel (vkCreateComputePipelines: ERROR_UNKNOWN)",
+                // render, or render_lanes (--lane-pixels above 1, the
+                // default on a CPU device).
+                "kernel (vkCreateComputePipelines: ERROR_UNKNOWN)",
             ),
         };
         assert!(ok, "{fault:?}: {e:?}");
@@ -1550,7 +1552,7 @@ fn cli_device_faults_exit_4_with_one_line() {
             Fault::FenceNeverSignals,
             "within the fence timeout of 1 second",
         ),
-        (Fault::PipelineRefused, "refused to build the render kernel"),
+        (Fault::PipelineRefused, "refused to build the render"),
     ] {
         let o = run(fault.name());
         let err = stderr_of(&o);
