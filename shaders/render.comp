@@ -146,7 +146,7 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
             stack[0] = Entry(vec3(0.0), d, vec3(1.0), vec3(0.0), 0u);
             sp = 1u;
         }
-        // trace_ray's loop body, unchanged.
+        // trace_ray's loop body (trace.glsl), unchanged: keep the two alike.
         sp -= 1u;
         Entry e = stack[sp];
         Ray r = Ray(e.o, e.d);

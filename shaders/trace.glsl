@@ -146,7 +146,9 @@ vec3 add_weighted(vec3 a, vec3 w, vec3 b) {
 }
 
 // Intensity arriving along an eye ray. (The wavefront kernel,
-// shaders/wavefront.glsl, runs the same steps as separate dispatches.)
+// shaders/wavefront.comp, runs the same steps as separate dispatches;
+// render.comp's render_lane repeats this loop's body, between samples of
+// several points: a change here changes it there.)
 vec3 trace_ray(Ray ray) {
     Entry stack[STACK_SIZE];
     stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
