@@ -397,14 +397,6 @@ pub enum CellLayout {
 }
 
 impl CellLayout {
-    /// The name `--cell-layout` takes.
-    pub fn name(self) -> &'static str {
-        match self {
-            CellLayout::Offsets => "offsets",
-            CellLayout::Pairs => "pairs",
-        }
-    }
-
     /// Whether `p`'s structure reads cells in this layout (the grid and
     /// the hybrid's top grid under `Pairs`).
     pub fn applies(self, p: &crate::pack::Packed) -> bool {
@@ -778,6 +770,7 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
 /// A render's image size and sample lattice (`Gpu::lattice`): pixels w×h,
 /// lattice lw×lh (one more each way under corner sampling), the output
 /// buffer's bytes.
+#[derive(Clone, Copy)]
 struct Lattice {
     w: u32,
     h: u32,
@@ -790,23 +783,17 @@ struct Lattice {
 /// The image from a kernel's output lattice (`vec4 samples[]`, binding
 /// 7): each sample's rgb, the corners resolved to pixels under corner
 /// sampling.
-fn read_pixels(
-    samples: &Buffer,
-    bytes: u64,
-    corners: bool,
-    w: u32,
-    h: u32,
-) -> Result<Vec<[f32; 3]>, GpuError> {
+fn read_pixels(samples: &Buffer, at: &Lattice) -> Result<Vec<[f32; 3]>, GpuError> {
     let lattice: Vec<[f32; 3]> = samples
-        .read(bytes as usize)?
+        .read(at.out_bytes as usize)?
         .chunks_exact(16)
         .map(|c| {
             let v: [f32; 4] = bytemuck::pod_read_unaligned(c);
             [v[0], v[1], v[2]]
         })
         .collect();
-    Ok(if corners {
-        cpu::resolve_corners(&lattice, w, h)
+    Ok(if at.corners {
+        cpu::resolve_corners(&lattice, at.w, at.h)
     } else {
         lattice
     })
@@ -972,6 +959,27 @@ impl Gpu {
         Ok(())
     }
 
+    /// `opts` with what depends on the device settled: the lattice points
+    /// an invocation renders (`lane_pixels_for`), and the grid's cells as
+    /// offsets where pairs would not fit the device's buffer range
+    /// (`CellLayout::fitting`; the same image).
+    fn resolved(&self, packed: &Packed, opts: &GpuOptions) -> GpuOptions {
+        let range = self.ctx.info.max_storage_buffer_range;
+        let cell_layout = opts.cell_layout.fitting(packed, range);
+        if cell_layout != opts.cell_layout {
+            log::debug!(
+                "the grid's cells as offsets: as pairs they would be {}, over {}",
+                mib(CellLayout::Pairs.bytes(packed)),
+                mib(range)
+            );
+        }
+        GpuOptions {
+            cell_layout,
+            lane_pixels: lane_pixels_for(opts.lane_pixels, self.info().kind),
+            ..opts.clone()
+        }
+    }
+
     /// The output lattice of a render of `packed`, after the checks every
     /// render kernel needs: the workgroup shape, the buffers against the
     /// device's limits, llvmpipe's loop budget.
@@ -1089,22 +1097,7 @@ impl Gpu {
         opts: &GpuOptions,
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
-        let fitted;
-        let range = self.ctx.info.max_storage_buffer_range;
-        let opts = if opts.cell_layout.fitting(packed, range) != opts.cell_layout {
-            log::debug!(
-                "the grid's cells as offsets: as pairs they would be {}, over {}",
-                mib(CellLayout::Pairs.bytes(packed)),
-                mib(range)
-            );
-            fitted = GpuOptions {
-                cell_layout: CellLayout::Offsets,
-                ..opts.clone()
-            };
-            &fitted
-        } else {
-            opts
-        };
+        let opts = &self.resolved(packed, opts);
         if opts.kernel == GpuKernel::Wavefront {
             if opts.math != GpuMath::Exact {
                 return Err(GpuError::Setting(
@@ -1124,8 +1117,7 @@ impl Gpu {
             return self
                 .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
         }
-        let lane_pixels = lane_pixels_for(opts.lane_pixels, self.info().kind);
-        let (name, spirv) = opts.math.render_kernel(lane_pixels > 1);
+        let (name, spirv) = opts.math.render_kernel(opts.lane_pixels > 1);
         self.guarded(|| self.render_with(spirv, name, packed, opts, progress))
     }
 
@@ -1138,6 +1130,7 @@ impl Gpu {
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
+        let lattice = self.lattice(packed, opts)?;
         let Lattice {
             w,
             h,
@@ -1145,7 +1138,7 @@ impl Gpu {
             lh,
             corners,
             out_bytes,
-        } = self.lattice(packed, opts)?;
+        } = lattice;
         let g = &packed.globals;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
         let mut clock = Instant::now();
@@ -1163,7 +1156,7 @@ impl Gpu {
                 (1, opts.workgroup[1]),
                 (2, g.trace[1]),
                 (3, structure_key(g.flags) | layout_key(opts, packed)),
-                (4, lane_pixels_for(opts.lane_pixels, self.info().kind)),
+                (4, opts.lane_pixels),
             ],
         )?;
         lap(&mut phases, "pipeline");
@@ -1243,7 +1236,7 @@ impl Gpu {
             progress(k as u64 + 1, tiles.len() as u64);
         }
         lap(&mut phases, "dispatch");
-        let pixels = read_pixels(&samples, out_bytes, corners, w, h)?;
+        let pixels = read_pixels(&samples, &lattice)?;
         Ok(Frame {
             width: w,
             height: h,

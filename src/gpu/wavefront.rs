@@ -208,6 +208,7 @@ impl Gpu {
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
+        let lattice = self.lattice(packed, opts)?;
         let super::Lattice {
             w,
             h,
@@ -215,7 +216,7 @@ impl Gpu {
             lh,
             corners,
             out_bytes,
-        } = self.lattice(packed, opts)?;
+        } = lattice;
         let g = &packed.globals;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
         let mut clock = Instant::now();
@@ -436,7 +437,7 @@ impl Gpu {
             progress(k as u64 + 1, tiles.len() as u64);
         }
         lap(&mut phases, "dispatch");
-        let pixels = read_pixels(&samples, out_bytes, corners, w, h)?;
+        let pixels = read_pixels(&samples, &lattice)?;
         Ok(Frame {
             width: w,
             height: h,
