@@ -1155,6 +1155,51 @@ fn a_cut_loop_is_an_error_not_a_wrong_image() {
     }
 }
 
+/// An invocation that renders two lattice points (`--lane-pixels 2`, the
+/// default on CPU devices) makes about twice the loop iterations of one
+/// against the same budget. A scene within the budget at one point per
+/// invocation (here 10 000 lights) must still render by default, as the
+/// CPU does: the render falls back to one point. Asked for explicitly,
+/// two points is refused with `--lane-pixels 1` as the first remedy.
+#[test]
+fn the_default_lane_pixels_fall_back_to_one_when_loops_are_cut() {
+    let Some(g) = common::gpu() else { return };
+    let mut text = String::from(
+        "[camera]\nfrom = [0, -5, 0]\nat = [0, 0, 0]\n\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
+    );
+    for i in 0..10_000 {
+        let a = i as f64 * 0.0003;
+        text.push_str(&format!(
+            "\n[[light]]\nposition = [{}, -6, {}]\ncolor = 0.0001\n",
+            10.0 * a.cos(),
+            10.0 * a.sin()
+        ));
+    }
+    let p = common::parse(&text, &common::small(32, 32));
+    let gf = g
+        .render(&p, &GpuOptions::default(), &|_, _| {})
+        .unwrap_or_else(|e| panic!("the default must render: {e}"));
+    common::assert_no_validation_errors();
+    let cf = whitted::cpu::render(&p, &|_, _| {});
+    assert_eq!(gf.stats, cf.stats);
+    let c = metrics::compare(&cf, &gf, &Tolerance::for_device(g.info().kind));
+    assert!(c.passed(), "{:?}", c.failures);
+    let two = GpuOptions {
+        lane_pixels: 2,
+        ..GpuOptions::default()
+    };
+    let r = g.render(&p, &two, &|_, _| {});
+    if g.info().has_loop_budget() {
+        let e = r.expect_err("llvmpipe cuts 10 000 lights at two points per invocation");
+        assert!(matches!(e, GpuError::LoopsCut { .. }), "{e:?}");
+        let msg = e.to_string();
+        assert!(msg.contains("use --lane-pixels 1"), "{msg}");
+        assert!(msg.contains("use fewer lights"), "{msg}");
+    } else {
+        assert_eq!(r.unwrap_or_else(|e| panic!("{e}")).stats, cf.stats);
+    }
+}
+
 // ------------------------------------------------------------ loop budget
 
 /// A scene of one regular polygon of `n` vertices facing the camera, lit by

@@ -1048,14 +1048,23 @@ impl Gpu {
         }
     }
 
-    /// The error for `loops` cut loops, naming what drives them.
-    fn loops_cut(&self, packed: &Packed, loops: u32) -> GpuError {
+    /// The error for `loops` cut loops, naming what drives them; with
+    /// `lane_pixels` > 1 points per invocation, fewer is the first remedy.
+    fn loops_cut(&self, packed: &Packed, loops: u32, lane_pixels: u32) -> GpuError {
         let driver = loops::LoopLoad::of(packed).largest();
+        let remedy = if lane_pixels > 1 {
+            format!(
+                "use --lane-pixels 1 (each invocation rendered {lane_pixels} lattice points), {}",
+                driver.remedy()
+            )
+        } else {
+            driver.remedy().into()
+        };
         GpuError::LoopsCut {
             device: self.info().name.clone(),
             loops,
             cause: driver.describe(),
-            remedy: driver.remedy().into(),
+            remedy,
         }
     }
 
@@ -1097,6 +1106,7 @@ impl Gpu {
         opts: &GpuOptions,
         progress: &dyn Fn(u64, u64),
     ) -> Result<Frame, GpuError> {
+        let by_device = opts.lane_pixels == 0;
         let opts = &self.resolved(packed, opts);
         if opts.kernel == GpuKernel::Wavefront {
             if opts.math != GpuMath::Exact {
@@ -1118,7 +1128,26 @@ impl Gpu {
                 .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
         }
         let (name, spirv) = opts.math.render_kernel(opts.lane_pixels > 1);
-        self.guarded(|| self.render_with(spirv, name, packed, opts, progress))
+        match self.guarded(|| self.render_with(spirv, name, packed, opts, progress)) {
+            // An invocation rendering K points makes about K times the
+            // loop iterations of one, against the same budget: a scene
+            // within it at one point per invocation renders, not fails,
+            // when K was the device's default rather than asked for.
+            Err(GpuError::LoopsCut { device, cause, .. }) if by_device && opts.lane_pixels > 1 => {
+                log::info!(
+                    "{device} cut shader loops short at {} lattice points per invocation, \
+                     likely for {cause}: rendering again with one (--lane-pixels 1)",
+                    opts.lane_pixels
+                );
+                let one = GpuOptions {
+                    lane_pixels: 1,
+                    ..opts.clone()
+                };
+                let (name, spirv) = one.math.render_kernel(false);
+                self.guarded(|| self.render_with(spirv, name, packed, &one, progress))
+            }
+            r => r,
+        }
     }
 
     fn render_with(
@@ -1226,7 +1255,7 @@ impl Gpu {
             )?;
             let (s, wk, cut) = read_counts(&counters)?;
             if cut > 0 {
-                return Err(self.loops_cut(packed, cut));
+                return Err(self.loops_cut(packed, cut, opts.lane_pixels));
             }
             work.add(&wk);
             stats.add(&s);

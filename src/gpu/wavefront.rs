@@ -315,7 +315,7 @@ impl Gpu {
             }
             let (s, wk, cut) = super::read_counts(&counters)?;
             if cut > 0 {
-                return Err(self.loops_cut(packed, cut));
+                return Err(self.loops_cut(packed, cut, 1));
             }
             Ok((s, wk))
         };
