@@ -158,11 +158,23 @@ impl Aabb {
         lo: [f32::INFINITY; 3],
         hi: [f32::NEG_INFINITY; 3],
     };
+    /// The union with the box `lo..hi`. Selects rather than
+    /// `f32::min`/`max` (which also handle a NaN in `self`, never the case
+    /// here: boxes start `EMPTY` and a NaN bound is ignored either way):
+    /// one `minss`/`maxss` each in the build's inner loops.
     #[inline]
     fn grow(&mut self, lo: &[f32; 3], hi: &[f32; 3]) {
         for i in 0..3 {
-            self.lo[i] = self.lo[i].min(lo[i]);
-            self.hi[i] = self.hi[i].max(hi[i]);
+            self.lo[i] = if lo[i] < self.lo[i] {
+                lo[i]
+            } else {
+                self.lo[i]
+            };
+            self.hi[i] = if hi[i] > self.hi[i] {
+                hi[i]
+            } else {
+                self.hi[i]
+            };
         }
     }
     #[inline]
@@ -299,11 +311,16 @@ fn wide_node(
     out: &mut Vec<BvhNode>,
     max_depth: &mut u32,
 ) -> u32 {
+    const W: usize = BVH_WIDTH as usize;
     let height = |c: &BvhChild| if c.interior() { h[c.link as usize] } else { 0 };
     let k = 2 * node as usize;
-    let mut kids = vec![bin[k], bin[k + 1]];
-    while kids.len() < BVH_WIDTH as usize {
-        let Some((i, _)) = kids
+    // The children so far, `kids[..len]` (on the stack: no allocation per
+    // node).
+    let mut kids = [BvhChild::EMPTY; W];
+    kids[..2].copy_from_slice(&bin[k..k + 2]);
+    let mut len = 2;
+    while len < W {
+        let Some((i, _)) = kids[..len]
             .iter()
             .enumerate()
             .filter(|(_, c)| c.interior())
@@ -312,14 +329,19 @@ fn wide_node(
             break;
         };
         let c = 2 * kids[i].link as usize;
-        let mut trial = kids.clone();
-        trial.splice(i..=i, [bin[c], bin[c + 1]]);
-        let below = trial.iter().map(height).max().unwrap_or(0);
-        if pushes + trial.len() as u32 - 1 + below > BVH_STACK_SIZE {
+        // Child i replaced by its two children, in place.
+        let mut trial = kids;
+        trial.copy_within(i + 1..len, i + 2);
+        trial[i] = bin[c];
+        trial[i + 1] = bin[c + 1];
+        let below = trial[..len + 1].iter().map(height).max().unwrap_or(0);
+        if pushes + len as u32 + below > BVH_STACK_SIZE {
             break;
         }
         kids = trial;
+        len += 1;
     }
+    let kids = &kids[..len];
     *max_depth = (*max_depth).max(depth);
     let at = out.len();
     out.push(BvhNode::EMPTY);
@@ -498,8 +520,9 @@ fn bin_scale(cb: &Aabb, axis: usize) -> f32 {
 
 #[inline]
 fn bin_of(c2: f32, lo: f32, k: f32) -> usize {
-    // Non-negative, or NaN (0) for a centroid beyond f32: `as` saturates.
-    (((c2 - lo) * k) as usize).min(BINS - 1)
+    // Non-negative, or NaN (0) for a centroid beyond f32: `as` saturates
+    // (to i32: one conversion, where to usize takes two and a branch).
+    (((c2 - lo) * k) as i32).clamp(0, BINS as i32 - 1) as usize
 }
 
 /// The best split by the binned heuristic: (cost relative to testing one
@@ -512,8 +535,7 @@ fn sah_split(items: &[Item], bb: &Aabb, cb: &Aabb) -> Option<(f64, usize, usize)
         return None;
     }
     let scale = [0, 1, 2].map(|a| bin_scale(cb, a));
-    let bin = |chunk: &[Item]| {
-        let mut bins = Bins::default();
+    let bin = |bins: &mut Bins, chunk: &[Item]| {
         for it in chunk {
             for a in 0..3 {
                 if axes[a] {
@@ -523,39 +545,54 @@ fn sah_split(items: &[Item], bb: &Aabb, cb: &Aabb) -> Option<(f64, usize, usize)
                 }
             }
         }
-        bins
     };
-    let Bins { boxes, counts } = if items.len() >= PARALLEL_MIN * 16 {
+    // Filled in place: a `Bins` is 1.3 kB, and moving it out of a closure
+    // cost the build three copies per node.
+    let mut bins = Bins::default();
+    if items.len() >= PARALLEL_MIN * 16 {
         use rayon::prelude::*;
-        items
+        bins = items
             .par_chunks(PARALLEL_MIN * 4)
-            .map(bin)
-            .reduce(Bins::default, Bins::merge)
+            .map(|chunk| {
+                let mut b = Bins::default();
+                bin(&mut b, chunk);
+                b
+            })
+            .reduce(Bins::default, Bins::merge);
     } else {
-        bin(items)
-    };
+        bin(&mut bins, items);
+    }
+    let Bins { boxes, counts } = &bins;
     let parent = bb.half_area();
     let mut best: Option<(f64, usize, usize)> = None;
     for a in (0..3).filter(|&a| axes[a]) {
-        // Right-hand sweep: area × count of bins b+1.. for each b.
+        // Right-hand sweep: area × count of bins b+1.. for each b. An
+        // empty bin adds nothing: the value of the bin after it, exactly.
         let mut right = [0f64; BINS];
         let mut acc = Aabb::EMPTY;
         let mut n = 0u64;
         for b in (1..BINS).rev() {
+            if counts[a][b] == 0 {
+                right[b - 1] = if n > 0 { right[b] } else { -1.0 };
+                continue;
+            }
             acc.grow(&boxes[a][b].lo, &boxes[a][b].hi);
             n += counts[a][b] as u64;
-            right[b - 1] = if n > 0 {
-                acc.half_area() * n as f64
-            } else {
-                -1.0
-            };
+            right[b - 1] = acc.half_area() * n as f64;
         }
         let mut acc = Aabb::EMPTY;
         let mut n = 0u64;
         for b in 0..BINS - 1 {
+            // After an empty bin the split costs what the one before it
+            // did (same left box and count, same right side), which a
+            // strictly lower cost is needed to beat: skipping it changes
+            // nothing, and small nodes' bins are mostly empty.
+            if counts[a][b] == 0 {
+                continue;
+            }
             acc.grow(&boxes[a][b].lo, &boxes[a][b].hi);
             n += counts[a][b] as u64;
-            if n == 0 || right[b] < 0.0 {
+            if right[b] < 0.0 {
                 continue;
             }
             let sah = acc.half_area() * n as f64 + right[b];
