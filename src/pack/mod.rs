@@ -603,9 +603,15 @@ fn take_out_giants(all: &Bounds, bounded: &mut Vec<(Prim, Bounds)>, unbounded: &
     if count == 0 || count > GIANTS_MAX || count == bounded.len() {
         return;
     }
-    let (giants, rest): (Vec<_>, Vec<_>) = bounded.drain(..).partition(|(_, b)| giant(b));
-    *bounded = rest;
-    unbounded.extend(giants.into_iter().map(|(p, _)| p));
+    // In place, both sides in their order: a partition into two new
+    // vectors copied every primitive (598 k spheres and one floor: 0.13 s).
+    unbounded.reserve(count);
+    bounded.retain(|(p, b)| {
+        if giant(b) {
+            unbounded.push(*p);
+        }
+        !giant(b)
+    });
 }
 
 /// Spreads the low 10 bits of `v` to every third bit.
@@ -634,7 +640,13 @@ fn morton_key(all: &Bounds, e: &[f64; 3], b: &Bounds) -> u64 {
 fn morton_order(prims: &mut [(Prim, Bounds)]) {
     let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
     let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
-    prims.sort_by_cached_key(|(_, b)| morton_key(&all, &e, b));
+    // Stable either way; in parallel for the large scenes it costs most.
+    if prims.len() >= 1 << 16 {
+        use rayon::slice::ParallelSliceMut;
+        prims.par_sort_by_cached_key(|(_, b)| morton_key(&all, &e, b));
+    } else {
+        prims.sort_by_cached_key(|(_, b)| morton_key(&all, &e, b));
+    }
 }
 
 /// Drops every opaque primitive that is an exact copy of an earlier one
