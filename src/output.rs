@@ -27,14 +27,79 @@ pub fn srgb(v: f32) -> f32 {
     }
 }
 
-/// 8-bit value of a linear channel under `enc`.
-pub fn to_u8(v: f32, enc: Encoding) -> u8 {
+/// 8-bit value of a linear channel under `enc`, by the definition: the
+/// transfer function, then round(255 · e). The reference `to_u8` equals.
+pub fn to_u8_direct(v: f32, enc: Encoding) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v };
     let e = match enc {
         Encoding::Srgb => srgb(v),
         Encoding::Linear => v.clamp(0.0, 1.0),
     };
     (e * 255.0).round() as u8
+}
+
+/// `SRGB_THRESHOLDS[k − 1]`: the least f32 whose sRGB code is at least k
+/// (k = 1..=255). The code of `v` is then the number of thresholds at
+/// most `v`: `to_u8_direct`'s value, exactly, for every f32 (a NaN counts
+/// none: 0), since that is monotone in `v` (tests, around every threshold).
+fn srgb_thresholds() -> &'static [f32; 255] {
+    static T: std::sync::OnceLock<[f32; 255]> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        let code = |bits: u32| to_u8_direct(f32::from_bits(bits), Encoding::Srgb);
+        let one = 1f32.to_bits();
+        std::array::from_fn(|i| {
+            let k = i as u8 + 1;
+            // Least bit pattern in 0..=1.0 (ordered like the values) whose
+            // code reaches k: code(one) = 255 ≥ k.
+            let (mut lo, mut hi) = (0u32, one);
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if code(mid) >= k {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            f32::from_bits(lo)
+        })
+    })
+}
+
+/// The sRGB code of the least f32 of each block of 2¹⁶ (by bit pattern)
+/// from 0 to 1: the first threshold to compare a value of that block with.
+fn srgb_block_codes() -> &'static [u8] {
+    static B: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    B.get_or_init(|| {
+        let t = srgb_thresholds();
+        (0..=1f32.to_bits() >> 16)
+            .map(|b| t.partition_point(|&x| x <= f32::from_bits(b << 16)) as u8)
+            .collect()
+    })
+}
+
+/// 8-bit value of a linear channel under `enc`: `to_u8_direct`'s, the
+/// sRGB one by counting code thresholds from its block's first code (a
+/// block of 2¹⁶ f32 spans at most about one code) rather than by a
+/// `powf`: 2.4 M of those for a 1024 × 768 image took 24 ms of output.
+#[inline]
+pub fn to_u8(v: f32, enc: Encoding) -> u8 {
+    match enc {
+        Encoding::Srgb => {
+            if v.is_nan() || v <= 0.0 {
+                return 0;
+            }
+            if v >= 1.0 {
+                return 255;
+            }
+            let t = srgb_thresholds();
+            let mut code = srgb_block_codes()[(v.to_bits() >> 16) as usize];
+            while code < 255 && t[code as usize] <= v {
+                code += 1;
+            }
+            code
+        }
+        Encoding::Linear => to_u8_direct(v, enc),
+    }
 }
 
 pub fn to_rgb8(f: &Frame, enc: Encoding) -> image::RgbImage {
@@ -123,5 +188,42 @@ mod tests {
         assert_eq!(to_u8(2.0, Encoding::Srgb), 255);
         assert_eq!(to_u8(-1.0, Encoding::Linear), 0);
         assert_eq!(to_u8(f32::NAN, Encoding::Linear), 0);
+        assert_eq!(to_u8(f32::NAN, Encoding::Srgb), 0);
+        assert_eq!(to_u8(f32::INFINITY, Encoding::Srgb), 255);
+        assert_eq!(to_u8(f32::NEG_INFINITY, Encoding::Srgb), 0);
+        assert_eq!(to_u8(-0.0, Encoding::Srgb), 0);
+    }
+
+    /// The thresholds give the code `powf` gives: within 4096 steps of f32
+    /// either side of every threshold (where a code changes, and where a
+    /// `powf` not monotone to the last bit could make them differ), and at
+    /// every 4096th f32 from −2 to 2 in between.
+    #[test]
+    fn srgb_codes_by_threshold_are_the_direct_ones() {
+        let t = srgb_thresholds();
+        assert!(t.windows(2).all(|w| w[0] < w[1]), "thresholds increase");
+        let check = |v: f32| {
+            assert_eq!(
+                to_u8(v, Encoding::Srgb),
+                to_u8_direct(v, Encoding::Srgb),
+                "{v:e} ({:#x})",
+                v.to_bits()
+            );
+        };
+        for &x in t.iter() {
+            let b = x.to_bits();
+            for bits in b.saturating_sub(4096)..=b + 4096 {
+                check(f32::from_bits(bits));
+            }
+        }
+        for bits in (0..=2f32.to_bits()).step_by(4096) {
+            check(f32::from_bits(bits));
+            check(-f32::from_bits(bits));
+        }
+        // Each threshold is where its code starts.
+        for (i, &x) in t.iter().enumerate() {
+            assert_eq!(to_u8_direct(x, Encoding::Srgb), i as u8 + 1);
+            assert_eq!(to_u8_direct(x.next_down(), Encoding::Srgb), i as u8);
+        }
     }
 }
