@@ -792,18 +792,29 @@ pub fn census(scene: &Scene) -> (u64, u64, u64) {
 /// The structure to build for `settings` over the finite primitives'
 /// `bounds`, and whether `Accel::Auto` chose it. An explicit `--grid`
 /// under `Auto` means the grid.
-pub fn choose_structure(settings: &Settings, bounds: &[Bounds]) -> (Accel, bool) {
+/// `samples`: the eye rays the render traces (lattice points × samples
+/// per point), which the BVH's longer build is spread over.
+pub fn choose_structure(settings: &Settings, bounds: &[Bounds], samples: u64) -> (Accel, bool) {
     match settings.accel {
         Accel::Auto if settings.grid.is_some() => (Accel::Grid, false),
-        Accel::Auto => (auto_structure(bounds), true),
+        Accel::Auto => (auto_structure(bounds, samples), true),
         a => (a, false),
     }
 }
 
-/// `Accel::Auto` takes the grid above this many finite primitives: the
-/// BVH's build (about twice the grid's) then outweighs what it saves at
-/// usual image sizes (docs/method.md, "Choosing the structure").
+/// `Accel::Auto` may take the BVH up to this many finite primitives
+/// whatever the image; beyond it only while the render it speeds up is
+/// long enough to pay for its build (`AUTO_BVH_RAYS`).
 pub const AUTO_BVH_MAX_PRIMS: usize = 1 << 16;
+
+/// Beyond `AUTO_BVH_MAX_PRIMS`, `Accel::Auto` takes the BVH while N ×
+/// fill ≤ `AUTO_BVH_RAYS` × eye rays (N finite primitives, `fill_ratio`):
+/// the BVH's build costs about twice the grid's per primitive, and what
+/// it saves per ray is the larger the sparser the scene (a teapot of
+/// fill 0.014 renders 3× faster under the BVH, a sphereflake of fill
+/// 0.12 1.5×). Measured on both at 256×192 to 1024×768 (docs/method.md,
+/// "Choosing the structure").
+pub const AUTO_BVH_RAYS: f64 = 0.04;
 
 /// `Accel::Auto` takes the grid when the primitives' boxes fill at least
 /// this share of their union's box (`fill_ratio`): an evenly filled scene,
@@ -830,15 +841,17 @@ pub fn fill_ratio(bounds: &[Bounds]) -> f64 {
 /// `Accel::Auto`'s rule (docs/method.md, "Choosing the structure"): the
 /// BVH, except for large scenes and evenly filled ones, where the grid
 /// was measured faster.
-pub fn auto_structure(bounds: &[Bounds]) -> Accel {
-    if bounds.len() > AUTO_BVH_MAX_PRIMS {
-        return Accel::Grid;
-    }
+pub fn auto_structure(bounds: &[Bounds], samples: u64) -> Accel {
     let fill = fill_ratio(bounds);
     log::debug!(
-        "auto structure: {} finite primitives, fill ratio {fill:.3}",
+        "auto structure: {} finite primitives, fill ratio {fill:.3}, {samples} eye rays",
         bounds.len()
     );
+    if bounds.len() > AUTO_BVH_MAX_PRIMS
+        && bounds.len() as f64 * fill > AUTO_BVH_RAYS * samples as f64
+    {
+        return Accel::Grid;
+    }
     if fill >= AUTO_GRID_FILL {
         Accel::Grid
     } else {
@@ -980,7 +993,11 @@ pub fn pack_with_progress(
     need.bounded = n;
     need.extra = b.extra.len() as u64;
     let budget = &settings.budget;
-    let (structure, auto) = choose_structure(settings, &bounds);
+    let eye_rays = match settings.sampling {
+        Sampling::Corners => (width as u64 + 1) * (height as u64 + 1),
+        Sampling::Centers => width as u64 * height as u64 * settings.spp.max(1) as u64,
+    };
+    let (structure, auto) = choose_structure(settings, &bounds, eye_rays);
     need.bvh = structure == Accel::Bvh;
     need.octree = structure == Accel::Octree;
     let n_bounded = b.bounded.len() as u32;
@@ -1663,7 +1680,8 @@ mod tests {
 
     /// `auto` takes the BVH for clustered scenes (the SPD's, a
     /// sphereflake), the grid for an evenly filled field of spheres and
-    /// above `AUTO_BVH_MAX_PRIMS` primitives.
+    /// above `AUTO_BVH_MAX_PRIMS` primitives, unless there are eye rays
+    /// enough for the BVH's build to pay (`AUTO_BVH_RAYS`).
     #[test]
     fn auto_picks_by_fill_and_size() {
         let auto = |s: &Scene| pack(s, &Settings::default()).unwrap().structure();
@@ -1687,9 +1705,13 @@ mod tests {
         };
         let few: Vec<Bounds> = (0..1000).map(tiny).collect();
         assert!(fill_ratio(&few) < AUTO_GRID_FILL);
-        assert_eq!(auto_structure(&few), Accel::Bvh);
+        assert_eq!(auto_structure(&few, 1), Accel::Bvh);
         let many: Vec<Bounds> = (0..AUTO_BVH_MAX_PRIMS + 1).map(tiny).collect();
-        assert_eq!(auto_structure(&many), Accel::Grid);
+        let fill = fill_ratio(&many);
+        let rays = (many.len() as f64 * fill / AUTO_BVH_RAYS) as u64;
+        assert_eq!(auto_structure(&many, rays / 2), Accel::Grid);
+        // ... unless the render has enough eye rays to pay for the build.
+        assert_eq!(auto_structure(&many, rays * 2), Accel::Bvh);
         // Every primitive at one point: nothing for either to separate.
         let pile = vec![
             Bounds {
