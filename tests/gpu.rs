@@ -1110,6 +1110,23 @@ fn cli_without_a_vulkan_driver() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("no Vulkan device"));
 }
 
+/// A unit sphere seen from 5 away, lit by `n` lights of colour `color`
+/// along an arc: one feeler each per shaded point.
+fn many_lights(n: usize, color: f64) -> String {
+    let mut text = String::from(
+        "[camera]\nfrom = [0, -5, 0]\nat = [0, 0, 0]\n\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
+    );
+    for i in 0..n {
+        let a = i as f64 * 0.0003;
+        text.push_str(&format!(
+            "\n[[light]]\nposition = [{}, -6, {}]\ncolor = {color}\n",
+            10.0 * a.cos(),
+            10.0 * a.sin()
+        ));
+    }
+    text
+}
+
 /// llvmpipe stops every shader loop of a group of invocations after 65535
 /// iterations in all. A scene that needs more (here 20 000 lights, one
 /// feeler each) must be refused with a clear error on llvmpipe, never
@@ -1117,18 +1134,7 @@ fn cli_without_a_vulkan_driver() {
 #[test]
 fn a_cut_loop_is_an_error_not_a_wrong_image() {
     let Some(g) = common::gpu() else { return };
-    let mut text = String::from(
-        "[camera]\nfrom = [0, -5, 0]\nat = [0, 0, 0]\n\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
-    );
-    for i in 0..20_000 {
-        let a = i as f64 * 0.0003;
-        text.push_str(&format!(
-            "\n[[light]]\nposition = [{}, -6, {}]\ncolor = 0.00005\n",
-            10.0 * a.cos(),
-            10.0 * a.sin()
-        ));
-    }
-    let p = common::parse(&text, &common::small(8, 8));
+    let p = common::parse(&many_lights(20_000, 0.00005), &common::small(8, 8));
     let r = g.render(&p, &GpuOptions::default(), &|_, _| {});
     common::assert_no_validation_errors();
     // One eye ray's own loops need only about 20 000 iterations: the host
@@ -1164,18 +1170,7 @@ fn a_cut_loop_is_an_error_not_a_wrong_image() {
 #[test]
 fn the_default_lane_pixels_fall_back_to_one_when_loops_are_cut() {
     let Some(g) = common::gpu() else { return };
-    let mut text = String::from(
-        "[camera]\nfrom = [0, -5, 0]\nat = [0, 0, 0]\n\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
-    );
-    for i in 0..10_000 {
-        let a = i as f64 * 0.0003;
-        text.push_str(&format!(
-            "\n[[light]]\nposition = [{}, -6, {}]\ncolor = 0.0001\n",
-            10.0 * a.cos(),
-            10.0 * a.sin()
-        ));
-    }
-    let p = common::parse(&text, &common::small(32, 32));
+    let p = common::parse(&many_lights(10_000, 0.0001), &common::small(32, 32));
     let gf = g
         .render(&p, &GpuOptions::default(), &|_, _| {})
         .unwrap_or_else(|e| panic!("the default must render: {e}"));
