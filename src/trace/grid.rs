@@ -112,6 +112,7 @@ pub fn clip_to_box<F: Real>(
 }
 
 /// Clips the ray to the grid; `None` when it misses the grid or the grid is empty.
+#[inline(always)]
 pub fn dda_setup<F: Real>(s: &SceneView, ray: &Ray<F>, pre: &RayPre<F>, tmax: F) -> Option<Dda<F>> {
     let g = s.globals;
     if g.grid_min[3] == 0.0 {
