@@ -28,7 +28,7 @@ pub fn srgb(v: f32) -> f32 {
 }
 
 /// 8-bit value of a linear channel under `enc`, by the definition: the
-/// transfer function, then round(255 · e). The reference `to_u8` equals.
+/// transfer function, then round(255 · e): the reference `to_u8` equals.
 pub fn to_u8_direct(v: f32, enc: Encoding) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v };
     let e = match enc {
@@ -38,7 +38,7 @@ pub fn to_u8_direct(v: f32, enc: Encoding) -> u8 {
     (e * 255.0).round() as u8
 }
 
-/// `SRGB_THRESHOLDS[k − 1]`: the least f32 whose sRGB code is at least k
+/// Entry k − 1: the least f32 whose sRGB code is at least k
 /// (k = 1..=255). The code of `v` is then the number of thresholds at
 /// most `v`: `to_u8_direct`'s value, exactly, for every f32 (a NaN counts
 /// none: 0), since that is monotone in `v` (tests: around every threshold,
