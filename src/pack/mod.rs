@@ -997,7 +997,14 @@ pub fn pack_with_progress(
         Sampling::Corners => (width as u64 + 1) * (height as u64 + 1),
         Sampling::Centers => width as u64 * height as u64 * settings.spp.max(1) as u64,
     };
-    let (structure, auto) = choose_structure(settings, &bounds, eye_rays);
+    let (mut structure, auto) = choose_structure(settings, &bounds, eye_rays);
+    // `auto` does not choose a BVH the memory budget refuses (its build
+    // needs more per primitive than the grid's): the grid, checked as
+    // it is built, may fit.
+    if auto && structure == Accel::Bvh && budget.check(&Need { bvh: true, ..need }).is_err() {
+        log::debug!("auto structure: the BVH's build would exceed the memory budget; the grid");
+        structure = Accel::Grid;
+    }
     need.bvh = structure == Accel::Bvh;
     need.octree = structure == Accel::Octree;
     let n_bounded = b.bounded.len() as u32;
@@ -1721,6 +1728,44 @@ mod tests {
             10
         ];
         assert_eq!(fill_ratio(&pile), 1.0);
+    }
+
+    /// Under a memory limit that the BVH's build exceeds and the grid's
+    /// does not, `auto` takes the grid (and says it is its choice) where
+    /// `--accel bvh` is refused.
+    #[test]
+    fn auto_takes_the_grid_where_the_bvh_would_exceed_the_budget() {
+        let scene = crate::gen::sphereflake(3);
+        let with = |accel, limit| {
+            pack(
+                &scene,
+                &Settings {
+                    accel,
+                    budget: Budget::bytes(limit),
+                    ..Settings::default()
+                },
+            )
+        };
+        assert_eq!(with(Accel::Auto, u64::MAX).unwrap().structure(), Accel::Bvh);
+        // The least limit each structure packs under (monotone in it).
+        let least = |accel| {
+            let (mut lo, mut hi) = (0u64, 1u64 << 40);
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if with(accel, mid).is_ok() {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            lo
+        };
+        let (grid, bvh) = (least(Accel::Grid), least(Accel::Bvh));
+        assert!(grid < bvh, "grid {grid} bytes, BVH {bvh}");
+        assert!(with(Accel::Bvh, bvh - 1).is_err());
+        let p = with(Accel::Auto, bvh - 1).expect("auto falls back to the grid");
+        assert_eq!(p.structure(), Accel::Grid);
+        assert!(p.accel.auto);
     }
 
     /// `--accel` picks the structure the tracers walk; `--grid` under
