@@ -780,10 +780,18 @@ struct Lattice {
     out_bytes: u64,
 }
 
-/// The image from a kernel's output lattice (`vec4 samples[]`, binding
-/// 7): each sample's rgb, the corners resolved to pixels under corner
-/// sampling.
-fn read_pixels(samples: &Buffer, at: &Lattice) -> Result<Vec<[f32; 3]>, GpuError> {
+/// Ends a kernel's render: reads its output lattice (`vec4 samples[]`,
+/// binding 7) into `frame`'s pixels, each sample's rgb, the corners
+/// resolved to pixels under corner sampling; the render's seconds from
+/// `t0` (the readback included), and the readback's own time, from
+/// `clock`, as its last phase.
+fn read_back(
+    mut frame: Frame,
+    samples: &Buffer,
+    at: &Lattice,
+    t0: Instant,
+    clock: Instant,
+) -> Result<Frame, GpuError> {
     let lattice: Vec<[f32; 3]> = samples
         .read(at.out_bytes as usize)?
         .chunks_exact(16)
@@ -792,11 +800,17 @@ fn read_pixels(samples: &Buffer, at: &Lattice) -> Result<Vec<[f32; 3]>, GpuError
             [v[0], v[1], v[2]]
         })
         .collect();
-    Ok(if at.corners {
+    frame.pixels = if at.corners {
         cpu::resolve_corners(&lattice, at.w, at.h)
     } else {
         lattice
-    })
+    };
+    (frame.width, frame.height) = (at.w, at.h);
+    frame.seconds = t0.elapsed().as_secs_f64();
+    frame
+        .phases
+        .push(("readback", clock.elapsed().as_secs_f64()));
+    Ok(frame)
 }
 
 /// An open device with its kernels, reusable across renders and probes.
@@ -1127,8 +1141,11 @@ impl Gpu {
             return self
                 .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
         }
-        let (name, spirv) = opts.math.render_kernel(opts.lane_pixels > 1);
-        match self.guarded(|| self.render_with(spirv, name, packed, opts, progress)) {
+        let mega = |opts: &GpuOptions| {
+            let (name, spirv) = opts.math.render_kernel(opts.lane_pixels > 1);
+            self.guarded(|| self.render_with(spirv, name, packed, opts, progress))
+        };
+        match mega(opts) {
             // An invocation rendering K points makes about K times the
             // loop iterations of one, against the same budget: a scene
             // within it at one point per invocation renders, not fails,
@@ -1139,12 +1156,10 @@ impl Gpu {
                      likely for {cause}: rendering again with one (--lane-pixels 1)",
                     opts.lane_pixels
                 );
-                let one = GpuOptions {
+                mega(&GpuOptions {
                     lane_pixels: 1,
                     ..opts.clone()
-                };
-                let (name, spirv) = one.math.render_kernel(false);
-                self.guarded(|| self.render_with(spirv, name, packed, &one, progress))
+                })
             }
             r => r,
         }
@@ -1161,12 +1176,11 @@ impl Gpu {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         let lattice = self.lattice(packed, opts)?;
         let Lattice {
-            w,
-            h,
             lw,
             lh,
             corners,
             out_bytes,
+            ..
         } = lattice;
         let g = &packed.globals;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
@@ -1265,21 +1279,14 @@ impl Gpu {
             progress(k as u64 + 1, tiles.len() as u64);
         }
         lap(&mut phases, "dispatch");
-        let pixels = read_pixels(&samples, &lattice)?;
-        Ok(Frame {
-            width: w,
-            height: h,
-            pixels,
+        let frame = Frame {
             stats,
             work,
-            seconds: t0.elapsed().as_secs_f64(),
             device_seconds,
-            phases: {
-                lap(&mut phases, "readback");
-                phases
-            },
-            device_stages: Vec::new(),
-        })
+            phases,
+            ..Frame::default()
+        };
+        read_back(frame, &samples, &lattice, t0, clock)
     }
 
     /// Runs probe kernel `mode` of `shaders/probe.comp` on every item.

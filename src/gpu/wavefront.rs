@@ -17,7 +17,7 @@ use super::dispatch::{self, Commands, Stage, Work};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
 use super::{
-    layout_key, mib, read_pixels, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS,
+    layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS,
 };
 use crate::cpu::Frame;
 use crate::pack::Packed;
@@ -210,12 +210,11 @@ impl Gpu {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         let lattice = self.lattice(packed, opts)?;
         let super::Lattice {
-            w,
-            h,
             lw,
             lh,
             corners,
             out_bytes,
+            ..
         } = lattice;
         let g = &packed.globals;
         let mut phases: Vec<(&'static str, f64)> = Vec::new();
@@ -437,24 +436,18 @@ impl Gpu {
             progress(k as u64 + 1, tiles.len() as u64);
         }
         lap(&mut phases, "dispatch");
-        let pixels = read_pixels(&samples, &lattice)?;
-        Ok(Frame {
-            width: w,
-            height: h,
-            pixels,
+        let frame = Frame {
             stats,
             work,
-            seconds: t0.elapsed().as_secs_f64(),
             device_seconds,
-            phases: {
-                lap(&mut phases, "readback");
-                phases
-            },
+            phases,
             device_stages: if device_seconds.is_some() {
                 STAGE_NAMES.iter().copied().zip(per_stage).collect()
             } else {
                 Vec::new()
             },
-        })
+            ..Frame::default()
+        };
+        read_back(frame, &samples, &lattice, t0, clock)
     }
 }

@@ -607,10 +607,11 @@ fn take_out_giants(all: &Bounds, bounded: &mut Vec<(Prim, Bounds)>, unbounded: &
     // vectors copied every primitive (598 k spheres and one floor: 0.13 s).
     unbounded.reserve(count);
     bounded.retain(|(p, b)| {
-        if giant(b) {
+        let g = giant(b);
+        if g {
             unbounded.push(*p);
         }
-        !giant(b)
+        !g
     });
 }
 
@@ -993,10 +994,12 @@ pub fn pack_with_progress(
     need.bounded = n;
     need.extra = b.extra.len() as u64;
     let budget = &settings.budget;
-    let eye_rays = match settings.sampling {
-        Sampling::Corners => (width as u64 + 1) * (height as u64 + 1),
-        Sampling::Centers => width as u64 * height as u64 * settings.spp.max(1) as u64,
-    };
+    let eye_rays = need.lattice()
+        * if need.corners {
+            1
+        } else {
+            settings.spp.max(1) as u64
+        };
     let (mut structure, auto) = choose_structure(settings, &bounds, eye_rays);
     // `auto` does not choose a BVH the memory budget refuses (its build
     // needs more per primitive than the grid's): the grid, checked as
