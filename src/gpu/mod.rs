@@ -780,17 +780,38 @@ struct Lattice {
     out_bytes: u64,
 }
 
+/// The wall time of a render's phases, in order, each timed from the end
+/// of the one before (`Frame::phases`).
+struct Phases {
+    list: Vec<(&'static str, f64)>,
+    clock: Instant,
+}
+
+impl Phases {
+    fn start() -> Phases {
+        Phases {
+            list: Vec::new(),
+            clock: Instant::now(),
+        }
+    }
+
+    /// Ends phase `what` now.
+    fn lap(&mut self, what: &'static str) {
+        self.list.push((what, self.clock.elapsed().as_secs_f64()));
+        self.clock = Instant::now();
+    }
+}
+
 /// Ends a kernel's render: reads its output lattice (`vec4 samples[]`,
 /// binding 7) into `frame`'s pixels, each sample's rgb, the corners
 /// resolved to pixels under corner sampling; the render's seconds from
-/// `t0` (the readback included), and the readback's own time, from
-/// `clock`, as its last phase.
+/// `t0` (the readback included), and its phases, the readback the last.
 fn read_back(
     mut frame: Frame,
     samples: &Buffer,
     at: &Lattice,
     t0: Instant,
-    clock: Instant,
+    mut phases: Phases,
 ) -> Result<Frame, GpuError> {
     let lattice: Vec<[f32; 3]> = samples
         .read(at.out_bytes as usize)?
@@ -807,9 +828,8 @@ fn read_back(
     };
     (frame.width, frame.height) = (at.w, at.h);
     frame.seconds = t0.elapsed().as_secs_f64();
-    frame
-        .phases
-        .push(("readback", clock.elapsed().as_secs_f64()));
+    phases.lap("readback");
+    frame.phases = phases.list;
     Ok(frame)
 }
 
@@ -1183,12 +1203,7 @@ impl Gpu {
             ..
         } = lattice;
         let g = &packed.globals;
-        let mut phases: Vec<(&'static str, f64)> = Vec::new();
-        let mut clock = Instant::now();
-        let mut lap = |phases: &mut Vec<(&'static str, f64)>, what: &'static str| {
-            phases.push((what, clock.elapsed().as_secs_f64()));
-            clock = Instant::now();
-        };
+        let mut phases = Phases::start();
         let kernel = self.kernel(
             name,
             spirv,
@@ -1202,7 +1217,7 @@ impl Gpu {
                 (4, opts.lane_pixels),
             ],
         )?;
-        lap(&mut phases, "pipeline");
+        phases.lap("pipeline");
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, opts)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
@@ -1211,7 +1226,7 @@ impl Gpu {
         binds.push((7, &samples));
         binds.push((8, &counters));
         kernel.bind(&binds)?;
-        lap(&mut phases, "upload");
+        phases.lap("upload");
 
         if !kernel
             .warmed
@@ -1231,7 +1246,7 @@ impl Gpu {
                 )
             })?;
         }
-        lap(&mut phases, "warm-up");
+        phases.lap("warm-up");
         let spp = if corners { 1 } else { g.image[2] };
         let max_samples = dispatch::max_tile_samples(g.trace[0], g.counts[2], MAX_TILE_SAMPLES);
         let tiles = dispatch::tiles(lw, lh, opts.tile, spp, max_samples);
@@ -1278,15 +1293,14 @@ impl Gpu {
             }
             progress(k as u64 + 1, tiles.len() as u64);
         }
-        lap(&mut phases, "dispatch");
+        phases.lap("dispatch");
         let frame = Frame {
             stats,
             work,
             device_seconds,
-            phases,
             ..Frame::default()
         };
-        read_back(frame, &samples, &lattice, t0, clock)
+        read_back(frame, &samples, &lattice, t0, phases)
     }
 
     /// Runs probe kernel `mode` of `shaders/probe.comp` on every item.

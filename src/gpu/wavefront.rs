@@ -17,7 +17,8 @@ use super::dispatch::{self, Commands, Stage, Work};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
 use super::{
-    layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions, SCENE_BINDINGS,
+    layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions, Phases,
+    SCENE_BINDINGS,
 };
 use crate::cpu::Frame;
 use crate::pack::Packed;
@@ -217,12 +218,7 @@ impl Gpu {
             ..
         } = lattice;
         let g = &packed.globals;
-        let mut phases: Vec<(&'static str, f64)> = Vec::new();
-        let mut clock = Instant::now();
-        let mut lap = |phases: &mut Vec<(&'static str, f64)>, what: &'static str| {
-            phases.push((what, clock.elapsed().as_secs_f64()));
-            clock = Instant::now();
-        };
+        let mut phases = Phases::start();
         let [wx, wy] = opts.workgroup;
         let lanes = wx * wy;
         let spec = [
@@ -244,7 +240,7 @@ impl Gpu {
                 )
             })
             .collect::<Result<_, _>>()?;
-        lap(&mut phases, "pipeline");
+        phases.lap("pipeline");
 
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, opts)?;
@@ -275,7 +271,7 @@ impl Gpu {
             kernels.iter().try_for_each(|k| k.bind(&b))
         };
         bind_all(&q)?;
-        lap(&mut phases, "upload");
+        phases.lap("upload");
 
         let mut stats = RayStats::default();
         let mut work = crate::trace::query::Work::default();
@@ -333,7 +329,7 @@ impl Gpu {
                 .collect();
             submit(Work::Warmup, true, &none, &mut None, &mut [0.0; 5])?;
         }
-        lap(&mut phases, "warm-up");
+        phases.lap("warm-up");
 
         let t0 = Instant::now();
         let u = |x: u64| x as u32;
@@ -435,12 +431,11 @@ impl Gpu {
             )?);
             progress(k as u64 + 1, tiles.len() as u64);
         }
-        lap(&mut phases, "dispatch");
+        phases.lap("dispatch");
         let frame = Frame {
             stats,
             work,
             device_seconds,
-            phases,
             device_stages: if device_seconds.is_some() {
                 STAGE_NAMES.iter().copied().zip(per_stage).collect()
             } else {
@@ -448,6 +443,6 @@ impl Gpu {
             },
             ..Frame::default()
         };
-        read_back(frame, &samples, &lattice, t0, clock)
+        read_back(frame, &samples, &lattice, t0, phases)
     }
 }
