@@ -65,8 +65,8 @@ fn walk(p: &pack::Packed, o: P, d: P, tmax: f64, sphere: bool) -> (u64, u64) {
             if link == 0 && count == 0 {
                 continue;
             }
-            let lo = [0, 1, 2].map(|i| node.lo[i][k] as f64);
-            let hi = [0, 1, 2].map(|i| node.hi[i][k] as f64);
+            let lo = [0, 1, 2].map(|i| node.lo()[i][k] as f64);
+            let hi = [0, 1, 2].map(|i| node.hi()[i][k] as f64);
             let hit = if sphere {
                 let c = [0, 1, 2].map(|i| 0.5 * (lo[i] + hi[i]));
                 let r = 0.5 * (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<f64>().sqrt();

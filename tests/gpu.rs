@@ -221,12 +221,13 @@ fn shader_layout_matches_rust() {
                 "{kernel}.comp binding {b}"
             );
         }
-        // BvhNode: three vec4s per box corner, lane by lane.
-        assert_eq!(
-            r.layout("BvhNode"),
-            fields!(BvhNode: lo, hi, link, count),
-            "{kernel}.comp: struct BvhNode"
-        );
+        // BvhNode: three vec4s per box corner, lane by lane; the shader's
+        // `lo` and `hi` are the Rust node's `bounds[0]` and `bounds[1]`.
+        let hi = std::mem::size_of::<[[f32; 4]; 3]>() as u32;
+        let mut node = fields!(BvhNode: bounds, link, count);
+        node[0].0 = "lo".into();
+        node.insert(1, ("hi".into(), offset_of!(BvhNode, bounds) as u32 + hi));
+        assert_eq!(r.layout("BvhNode"), node, "{kernel}.comp: struct BvhNode");
         assert_eq!(
             r.binding_array(11),
             ("BvhNode".into(), size_of::<BvhNode>() as u32),

@@ -349,8 +349,8 @@ fn wide_node(
     let mut n = BvhNode::EMPTY;
     for (lane, c) in kids.iter().enumerate() {
         for a in 0..3 {
-            n.lo[a][lane] = c.lo[a];
-            n.hi[a][lane] = c.hi[a];
+            n.bounds[0][a][lane] = c.lo[a];
+            n.bounds[1][a][lane] = c.hi[a];
         }
         if c.interior() {
             n.link[lane] = wide_node(bin, h, c.link, inner, depth + 1, out, max_depth);
@@ -773,8 +773,8 @@ mod tests {
             let inner = pushes + lanes.len() as u32 - 1;
             assert!(inner <= BVH_STACK_SIZE, "{inner} pushes on a path");
             for l in 0..BVH_WIDTH as usize {
-                let lo = [0, 1, 2].map(|a| node.lo[a][l]);
-                let hi = [0, 1, 2].map(|a| node.hi[a][l]);
+                let lo = [0, 1, 2].map(|a| node.lo()[a][l]);
+                let hi = [0, 1, 2].map(|a| node.hi()[a][l]);
                 if !lanes.contains(&l) {
                     assert_eq!((lo, hi), ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]));
                     continue;
@@ -799,8 +799,8 @@ mod tests {
             for &l in lanes.iter().rev() {
                 if node.count[l] == 0 {
                     let b = Aabb {
-                        lo: [0, 1, 2].map(|a| node.lo[a][l]),
-                        hi: [0, 1, 2].map(|a| node.hi[a][l]),
+                        lo: [0, 1, 2].map(|a| node.lo()[a][l]),
+                        hi: [0, 1, 2].map(|a| node.hi()[a][l]),
                     };
                     stack.push((node.link[l] as usize, d + 1, inner, Some(b)));
                 }
@@ -872,9 +872,9 @@ mod tests {
         let root = &bvh.nodes[0];
         let (mut near, mut far) = (0, 0);
         for l in 0..BVH_WIDTH as usize {
-            if root.hi[0][l] < 10.0 {
+            if root.hi()[0][l] < 10.0 {
                 near += 1;
-            } else if root.lo[0][l] > 990.0 {
+            } else if root.lo()[0][l] > 990.0 {
                 far += 1;
             }
         }

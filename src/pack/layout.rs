@@ -118,8 +118,11 @@ pub struct Light {
 
 /// One node of the 4-wide BVH, 128 bytes: up to `BVH_WIDTH` children,
 /// lane k of each field describing child k (nodes in depth-first order,
-/// node 0 the root). `lo[axis]`/`hi[axis]`: the children's boxes on that
-/// axis (f32, rounded outwards from the primitives' padded bounds), laid
+/// node 0 the root). `bounds[0][axis]`/`bounds[1][axis]` (`lo`, `hi`):
+/// the children's boxes on that axis (f32, rounded outwards from the
+/// primitives' padded bounds), low planes then high ones, so that a walk
+/// picks a slab's near plane by indexing with the sign of the ray's
+/// direction (`RayPre::near`) instead of a select per axis; laid
 /// out lane by lane so that one node's four box tests are four-wide
 /// arithmetic on both backends. `count[k]` > 0: a leaf of `count[k]`
 /// primitives from `prims[link[k]]` on; `count[k]` = 0 and `link[k]` > 0:
@@ -131,17 +134,27 @@ pub struct Light {
 #[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct BvhNode {
-    pub lo: [[f32; 4]; 3],
-    pub hi: [[f32; 4]; 3],
+    pub bounds: [[[f32; 4]; 3]; 2],
     pub link: [u32; 4],
     pub count: [u32; 4],
 }
 
 impl BvhNode {
+    /// The children's low planes, `lo[axis][lane]`.
+    #[inline(always)]
+    pub fn lo(&self) -> &[[f32; 4]; 3] {
+        &self.bounds[0]
+    }
+
+    /// The children's high planes, `hi[axis][lane]`.
+    #[inline(always)]
+    pub fn hi(&self) -> &[[f32; 4]; 3] {
+        &self.bounds[1]
+    }
+
     /// A node with no children.
     pub const EMPTY: BvhNode = BvhNode {
-        lo: [[f32::INFINITY; 4]; 3],
-        hi: [[f32::NEG_INFINITY; 4]; 3],
+        bounds: [[[f32::INFINITY; 4]; 3], [[f32::NEG_INFINITY; 4]; 3]],
         link: [0; 4],
         count: [0; 4],
     };
@@ -184,7 +197,10 @@ mod tests {
         assert_eq!(size_of::<Light>(), 48);
         assert_eq!(size_of::<BvhNode>(), 128);
         assert_eq!(std::mem::align_of::<BvhNode>(), 64);
-        assert_eq!(offset_of!(BvhNode, hi), 48);
+        // The shader's `hi` (bounds[1]) at byte 48.
+        let mut n = BvhNode::EMPTY;
+        n.bounds[1][0][0] = 7.0;
+        assert_eq!(bytemuck::bytes_of(&n)[48..52], 7.0f32.to_ne_bytes());
         assert_eq!(offset_of!(BvhNode, link), 96);
         assert_eq!(offset_of!(BvhNode, count), 112);
     }

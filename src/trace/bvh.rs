@@ -39,11 +39,8 @@ pub fn bvh_entries<F: Real>(n: &BvhNode, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
     for i in 0..3 {
         let o = ray.o.get(i);
         let inv = pre.inv_d.get(i);
-        let (near, far) = if inv >= F::zero() {
-            (&n.lo[i], &n.hi[i])
-        } else {
-            (&n.hi[i], &n.lo[i])
-        };
+        let near = &n.bounds[pre.near[i]][i];
+        let far = &n.bounds[1 - pre.near[i]][i];
         for k in 0..W {
             let tn = (F::of(near[k]) - o) * inv;
             let tf = (F::of(far[k]) - o) * inv * F::of(BVH_EXIT_WIDEN);

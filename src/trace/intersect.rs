@@ -19,7 +19,8 @@ pub struct Hit<F> {
 }
 
 /// Per-ray values computed once: the watertight triangle test's shear and
-/// axis permutation, and 1/d for the slabs.
+/// axis permutation, 1/d for the slabs, and which of a BVH node's bounds
+/// is each slab's near plane.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPre<F> {
     pub kx: usize,
@@ -29,6 +30,9 @@ pub struct RayPre<F> {
     pub sy: F,
     pub sz: F,
     pub inv_d: V3<F>,
+    /// Per axis, the index into `BvhNode::bounds` of the near planes: 0
+    /// (lo) where 1/d ≥ 0, else 1 (hi; a NaN too). `trace::bvh`.
+    pub near: [usize; 3],
 }
 
 impl<F: Real> RayPre<F> {
@@ -55,6 +59,7 @@ impl<F: Real> RayPre<F> {
         } else {
             (F::zero(), F::zero(), F::zero())
         };
+        let inv_d = v3(F::one() / d.x, F::one() / d.y, F::one() / d.z);
         RayPre {
             kx,
             ky,
@@ -62,7 +67,8 @@ impl<F: Real> RayPre<F> {
             sx,
             sy,
             sz,
-            inv_d: v3(F::one() / d.x, F::one() / d.y, F::one() / d.z),
+            inv_d,
+            near: [0, 1, 2].map(|i| if inv_d.get(i) >= F::zero() { 0 } else { 1 }),
         }
     }
 }

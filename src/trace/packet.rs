@@ -145,9 +145,9 @@ fn packet_entries<F: Real>(n: &BvhNode, iv: &Interval<F>, tmax: F) -> ([F; W], u
         // the greatest origin, the greatest exit at the least. 1/d < 0:
         // near = hi, t falls as (plane − o) grows: the reverse.
         let (near, far, on, of) = if iv.neg[i] {
-            (&n.hi[i], &n.lo[i], iv.olo[i], iv.ohi[i])
+            (&n.hi()[i], &n.lo()[i], iv.olo[i], iv.ohi[i])
         } else {
-            (&n.lo[i], &n.hi[i], iv.ohi[i], iv.olo[i])
+            (&n.lo()[i], &n.hi()[i], iv.ohi[i], iv.olo[i])
         };
         for k in 0..W {
             let xn = F::of(near[k]) - on;
@@ -285,9 +285,9 @@ fn slab_lanes<F: Real, const P: usize>(
     let mut t1 = *tmax;
     for i in 0..3 {
         let (near, far) = if neg[i] {
-            (F::of(n.hi[i][k]), F::of(n.lo[i][k]))
+            (F::of(n.hi()[i][k]), F::of(n.lo()[i][k]))
         } else {
-            (F::of(n.lo[i][k]), F::of(n.hi[i][k]))
+            (F::of(n.lo()[i][k]), F::of(n.hi()[i][k]))
         };
         for j in 0..P {
             let tn = (near - lw.o[i][j]) * lw.inv[i][j];
