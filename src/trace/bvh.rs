@@ -117,7 +117,9 @@ pub fn bvh_walk<F: Real>(
     // Each child becomes the current one at most once, so a walk takes at
     // most BVH_WIDTH·nodes + 1 steps (the bound keeps a NaN ray finite).
     for _ in 0..W as u64 * nodes as u64 + 1 {
-        if t <= q.t {
+        // A feeler's segment never shrinks: every child it entered is
+        // still worth walking, so it keeps no entry distances.
+        if q.shadow || t <= q.t {
             if count > 0 {
                 for entry in link..link + count {
                     let Some(i) = prim(entry) else {
@@ -165,7 +167,9 @@ pub fn bvh_walk<F: Real>(
                     }
                     for j in (1..m).rev() {
                         stack_slot[sp] = link * BVH_WIDTH + order[j] as u32;
-                        stack_t[sp] = te[order[j]];
+                        if !q.shadow {
+                            stack_t[sp] = te[order[j]];
+                        }
                         sp += 1;
                     }
                     let k = order[0];
