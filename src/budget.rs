@@ -371,12 +371,12 @@ impl fmt::Display for BudgetError {
 }
 
 /// Bytes one lattice sample costs while the frame is rendered: on the CPU
-/// each tile's samples (12) then the assembled lattice (12); on the GPU
+/// the lattice (12), which each band of tiles writes in place; on the GPU
 /// the readback buffer (16) then the lattice read from it (12). The larger.
 pub const SAMPLE_BYTES: u64 = 28;
-/// Bytes one pixel costs besides its sample: corner sampling resolves the
-/// (W+1)×(H+1) lattice into a separate W×H image (12); writing an .exr or
-/// .hdr copies the pixels once more (12), when the samples are gone.
+/// Bytes one pixel costs besides its sample: writing an .exr or .hdr
+/// copies the pixels (12); corner sampling resolves the (W+1)×(H+1)
+/// lattice into the W×H image in place (`cpu::resolve_corners_in_place`).
 pub const RESOLVED_PIXEL_BYTES: u64 = 12;
 
 /// Bytes per bounded primitive while it is packed: the builder's
@@ -433,14 +433,14 @@ impl Need {
         (self.width as u64 + c) * (self.height as u64 + c)
     }
 
-    /// The frame's bytes: the lattice's samples, the CPU's per-tile
-    /// records, and the resolved or copied image.
+    /// The frame's bytes: the lattice's samples, the CPU's per-band
+    /// records (counted per tile: more), and the copied image.
     pub fn frame_bytes(&self) -> u64 {
         let tile = crate::cpu::TILE as u64;
         let c = self.corners as u64;
         let tiles =
             (self.width as u64 + c).div_ceil(tile) * (self.height as u64 + c).div_ceil(tile);
-        let record = std::mem::size_of::<crate::cpu::TileResult>() as u64;
+        let record = std::mem::size_of::<crate::cpu::BandResult>() as u64;
         let pixels = self.width as u64 * self.height as u64;
         self.lattice()
             .saturating_mul(SAMPLE_BYTES)

@@ -48,9 +48,9 @@ pub fn render(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
     render_as::<f32>(p, progress)
 }
 
-/// What one tile of the lattice returns: its samples, row by row, and
-/// what they cost.
-pub type TileResult = (Vec<[f32; 3]>, RayStats, Work);
+/// What one band of tiles (a row of them) returns besides its samples,
+/// which it writes into the lattice: what they cost.
+pub type BandResult = (RayStats, Work);
 
 /// Renders with the tracer running in float type `F` (f64: the
 /// reference), one ray at a time as the shader walks them (so the work
@@ -85,54 +85,86 @@ pub fn render_packets<F: Real>(
     let tiles_y = sh.div_ceil(tile);
     let n_tiles = tiles_x * tiles_y;
     let done = std::sync::atomic::AtomicU64::new(0);
-    let tiles: Vec<TileResult> = (0..n_tiles)
-        .into_par_iter()
-        .map(|t| {
-            let (xs, ys) = tile_rect(t, tiles_x, sw, sh);
-            let mut out = Vec::with_capacity((TILE * TILE) as usize);
-            let mut stats = RayStats::default();
-            let mut work = Work::default();
-            match packet {
-                4 => tile_packets::<F, 4>(&s, xs, ys, corners, &mut out, &mut stats, &mut work),
-                8 => tile_packets::<F, 8>(&s, xs, ys, corners, &mut out, &mut stats, &mut work),
-                _ => {
-                    // x < sw ≤ W + 1 with W a u32: the lattice's last
-                    // column is W itself (corners), so `as u32` is exact.
-                    for y in ys {
-                        for x in xs.clone() {
-                            let c = if corners {
-                                trace_sample::<F>(&s, x as f32, y as f32, &mut stats, &mut work)
-                            } else {
-                                render_pixel::<F>(&s, x as u32, y as u32, &mut stats, &mut work)
-                            };
-                            out.push(c);
-                        }
-                    }
+    // Each tile writes its samples straight into its rows of the lattice
+    // (the lattice split into bands of one row of tiles, each band's rows
+    // into the tiles' stretches), so no per-tile buffers outlive their
+    // tile to be assembled afterwards (at 512², 3 MB of fresh pages and a
+    // copy). The tiles are rendered in parallel, each from its own
+    // scratch (`Work`: the shadow cache) as before.
+    let mut samples = vec![[0f32; 3]; (sw * sh) as usize];
+    let bands: Vec<BandResult> = samples
+        .par_chunks_mut((tile * sw) as usize)
+        .with_max_len(1)
+        .enumerate()
+        .map(|(ty, band)| {
+            let mut rows: Vec<Vec<&mut [[f32; 3]]>> = (0..tiles_x)
+                .map(|_| Vec::with_capacity(TILE as usize))
+                .collect();
+            for row in band.chunks_mut(sw as usize) {
+                for (tx, seg) in row.chunks_mut(TILE as usize).enumerate() {
+                    rows[tx].push(seg);
                 }
             }
-            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(d, n_tiles);
-            (out, stats, work)
+            rows.into_par_iter()
+                .with_max_len(1)
+                .enumerate()
+                .map(|(tx, segs)| {
+                    let (xs, ys) = tile_rect(ty as u64 * tiles_x + tx as u64, tiles_x, sw, sh);
+                    let width = (xs.end - xs.start) as usize;
+                    let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                    let mut stats = RayStats::default();
+                    let mut work = Work::default();
+                    match packet {
+                        4 => tile_packets::<F, 4>(
+                            &s, xs, ys, corners, &mut out, &mut stats, &mut work,
+                        ),
+                        8 => tile_packets::<F, 8>(
+                            &s, xs, ys, corners, &mut out, &mut stats, &mut work,
+                        ),
+                        _ => {
+                            // x < sw ≤ W + 1 with W a u32: the lattice's last
+                            // column is W itself (corners), so `as u32` is exact.
+                            for y in ys {
+                                for x in xs.clone() {
+                                    let c = if corners {
+                                        trace_sample::<F>(
+                                            &s, x as f32, y as f32, &mut stats, &mut work,
+                                        )
+                                    } else {
+                                        render_pixel::<F>(
+                                            &s, x as u32, y as u32, &mut stats, &mut work,
+                                        )
+                                    };
+                                    out.push(c);
+                                }
+                            }
+                        }
+                    }
+                    for (seg, row) in segs.into_iter().zip(out.chunks(width)) {
+                        seg.copy_from_slice(row);
+                    }
+                    let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                    progress(d, n_tiles);
+                    (stats, work)
+                })
+                .reduce(
+                    || (RayStats::default(), Work::default()),
+                    |(mut st, mut wk), (st2, wk2)| {
+                        st.add(&st2);
+                        wk.add(&wk2);
+                        (st, wk)
+                    },
+                )
         })
         .collect();
-    let mut samples = vec![[0f32; 3]; (sw * sh) as usize];
     let mut stats = RayStats::default();
     let mut work = Work::default();
-    for (t, (out, st, wk)) in tiles.iter().enumerate() {
-        let (xs, ys) = tile_rect(t as u64, tiles_x, sw, sh);
-        let (x0, x1) = (xs.start as usize, xs.end as usize);
-        let mut i = 0;
-        for y in ys {
-            let row = (y * sw) as usize;
-            samples[row + x0..row + x1].copy_from_slice(&out[i..i + (x1 - x0)]);
-            i += x1 - x0;
-        }
+    for (st, wk) in &bands {
         stats.add(st);
         work.add(wk);
     }
-    drop(tiles);
     let pixels = if corners {
-        resolve_corners(&samples, w, h)
+        resolve_corners_in_place(samples, w, h)
     } else {
         samples
     };
@@ -292,22 +324,28 @@ fn trace_packet<F: Real, const P: usize>(
     out
 }
 
-/// Each pixel is the mean of its four corners in the (W+1)×(H+1) lattice.
-pub fn resolve_corners(c: &[[f32; 3]], w: u32, h: u32) -> Vec<[f32; 3]> {
-    let sw = w as usize + 1;
-    let mut out = Vec::with_capacity(w as usize * h as usize);
-    for y in 0..h as usize {
-        for x in 0..w as usize {
+/// Each pixel is the mean of its four corners in the (W+1)×(H+1) lattice,
+/// computed in the lattice's own memory: pixel (x, y) is written
+/// at y·W + x, below every corner it or a later pixel reads (y·(W+1) + x
+/// and beyond), so a forward pass never overwrites a corner it still
+/// needs; the W·H pixels then fill the front. Saves a frame's worth of
+/// fresh pages (3 MB at 512², about 750 page faults).
+pub fn resolve_corners_in_place(mut c: Vec<[f32; 3]>, w: u32, h: u32) -> Vec<[f32; 3]> {
+    let (w, h) = (w as usize, h as usize);
+    let sw = w + 1;
+    for y in 0..h {
+        for x in 0..w {
             let (a, b, cc, d) = (
                 c[y * sw + x],
                 c[y * sw + x + 1],
                 c[(y + 1) * sw + x],
                 c[(y + 1) * sw + x + 1],
             );
-            out.push([0, 1, 2].map(|i| ((a[i] + b[i]) + (cc[i] + d[i])) * 0.25));
+            c[y * w + x] = [0, 1, 2].map(|i| ((a[i] + b[i]) + (cc[i] + d[i])) * 0.25);
         }
     }
-    out
+    c.truncate(w * h);
+    c
 }
 
 #[cfg(test)]
@@ -341,9 +379,33 @@ mod tests {
     fn corners_resolve_at_their_lattice() {
         let (w, h) = (3u32, 2u32);
         let lattice: Vec<[f32; 3]> = (0..(w + 1) * (h + 1)).map(|i| [i as f32; 3]).collect();
-        let px = resolve_corners(&lattice, w, h);
+        let px = resolve_corners_in_place(lattice, w, h);
         assert_eq!(px.len(), 6);
         // pixel (1, 1): corners 5, 6, 9, 10 of the 4-wide lattice
         assert_eq!(px[4], [7.5; 3]);
+    }
+
+    /// Resolving in place reads no corner it has overwritten: every pixel
+    /// equals the mean of its corners in a copy, on lattices of several
+    /// shapes with distinct values.
+    #[test]
+    fn corners_resolve_in_place_as_from_a_copy() {
+        for (w, h) in [(1u32, 1u32), (1, 5), (7, 1), (5, 4), (16, 9)] {
+            let sw = w as usize + 1;
+            let lattice: Vec<[f32; 3]> = (0..sw * (h as usize + 1))
+                .map(|i| [i as f32, (i * i % 97) as f32, -(i as f32) * 0.5])
+                .collect();
+            let px = resolve_corners_in_place(lattice.clone(), w, h);
+            assert_eq!(px.len(), (w * h) as usize);
+            for y in 0..h as usize {
+                for x in 0..w as usize {
+                    let c = |i: usize| lattice[i];
+                    let (a, b) = (c(y * sw + x), c(y * sw + x + 1));
+                    let (cc, d) = (c((y + 1) * sw + x), c((y + 1) * sw + x + 1));
+                    let want = [0, 1, 2].map(|i| ((a[i] + b[i]) + (cc[i] + d[i])) * 0.25);
+                    assert_eq!(px[y * w as usize + x], want, "{w}x{h} pixel ({x}, {y})");
+                }
+            }
+        }
     }
 }

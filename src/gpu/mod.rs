@@ -822,7 +822,7 @@ fn read_back(
         })
         .collect();
     frame.pixels = if at.corners {
-        cpu::resolve_corners(&lattice, at.w, at.h)
+        cpu::resolve_corners_in_place(lattice, at.w, at.h)
     } else {
         lattice
     };
