@@ -38,7 +38,8 @@ pub struct RenderArgs {
     pub precision: run::Precision,
     #[command(flatten)]
     pub gpu: GpuArgs,
-    /// PNG encoding: sRGB, or the clamped linear values round(255·v).
+    /// PNG encoding: sRGB, the clamped linear values round(255·v), or
+    /// those at 16 bits, round(65535·v) (linear16).
     #[arg(long, value_enum, default_value_t = Encoding::Srgb)]
     pub encoding: Encoding,
     /// Write ray counts, work counters, timings and grid size as JSON.
