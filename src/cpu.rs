@@ -90,7 +90,11 @@ pub fn render_packets<F: Real>(
     // into the tiles' stretches), so no per-tile buffers outlive their
     // tile to be assembled afterwards (at 512², 3 MB of fresh pages and a
     // copy). The tiles are rendered in parallel, each from its own
-    // scratch (`Work`: the shadow cache) as before.
+    // scratch (`Work`: the shadow cache), so images and counters do not
+    // depend on the scheduling; bands and tiles are handed out one at a
+    // time (`with_max_len(1)`): the default split into a few large ranges
+    // left a core idle where the cost is uneven across the image (SPD
+    // mount's render used 133 % of two cores, now 180 %).
     let mut samples = vec![[0f32; 3]; (sw * sh) as usize];
     let bands: Vec<BandResult> = samples
         .par_chunks_mut((tile * sw) as usize)
