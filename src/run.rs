@@ -340,15 +340,20 @@ pub fn render_cpu(
     packet: u32,
     progress: Progress,
 ) -> Result<Frame> {
-    let mut b = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = threads {
-        b = b.num_threads(n as usize);
-    }
-    let pool = b.build().context("cannot start worker threads")?;
-    Ok(pool.install(|| match precision {
+    let render = || match precision {
         Precision::F32 => cpu::render_packets::<f32>(packed, packet, progress),
         Precision::F64 => cpu::render_packets::<f64>(packed, packet, progress),
-    }))
+    };
+    // All cores: rayon's global pool, already started by the build, rather
+    // than a second pool of as many threads.
+    let Some(n) = threads else {
+        return Ok(render());
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n as usize)
+        .build()
+        .context("cannot start worker threads")?;
+    Ok(pool.install(render))
 }
 
 enum Chosen {
