@@ -205,24 +205,48 @@ pub fn cells(
     // Each band's centre line crosses the edges at xs (even-odd, in
     // f64); a clean cell's centre is inside when an odd number of them
     // lie to its right.
-    let mut xs = Vec::new();
-    for bb in 0..k {
-        let py = v_min as f64 + (bb as f64 + 0.5) * h;
-        xs.clear();
-        let mut a = q[n - 1];
-        for &b in q {
-            let (ax, ay, bx, by) = (a[0] as f64, a[1] as f64, b[0] as f64, b[1] as f64);
+    // Each edge is asked only about the bands whose centre lines its v
+    // range can reach (a window a band wider on each side than its range,
+    // every band where it is not finite), with the same test and the same
+    // crossing as a scan of every edge for every band: bands × edges took
+    // gears' faces 46 M instructions, more than the BVH build.
+    let centre = |bb: usize| v_min as f64 + (bb as f64 + 0.5) * h;
+    let mut crossings: Vec<(usize, f64)> = Vec::new();
+    let mut a = q[n - 1];
+    for &b in q {
+        let (ax, ay, bx, by) = (a[0] as f64, a[1] as f64, b[0] as f64, b[1] as f64);
+        let band = |v: f64| ((v - v_min as f64) / h - 0.5).clamp(-1.0, k as f64);
+        let (first, last) = if ay.is_finite() && by.is_finite() {
+            let (lo, hi) = (band(ay.min(by)), band(ay.max(by)));
+            (
+                (lo.floor() - 1.0).max(0.0) as usize,
+                ((hi.ceil() + 1.0).max(0.0) as usize).min(k - 1),
+            )
+        } else {
+            (0, k - 1)
+        };
+        for bb in first..=last {
+            let py = centre(bb);
             if (ay > py) != (by > py) {
-                xs.push(ax + (py - ay) * (bx - ax) / (by - ay));
+                crossings.push((bb, ax + (py - ay) * (bx - ax) / (by - ay)));
             }
-            a = b;
         }
-        xs.sort_by(f64::total_cmp);
+        a = b;
+    }
+    // Band by band, each band's crossings in increasing order.
+    crossings.sort_unstable_by(|p, q| p.0.cmp(&q.0).then(p.1.total_cmp(&q.1)));
+    let mut next = 0;
+    for bb in 0..k {
+        let start = next;
+        while next < crossings.len() && crossings[next].0 == bb {
+            next += 1;
+        }
+        let xs = &crossings[start..next];
         let mut left = 0; // crossings at or left of the centre
         for cc in 0..m {
             let i = bb * m + cc;
             let px = u_lo as f64 + (cc as f64 + 0.5) * w;
-            while left < xs.len() && xs[left] <= px {
+            while left < xs.len() && xs[left].1 <= px {
                 left += 1;
             }
             if codes[i] != CELL_EDGE && (xs.len() - left) % 2 == 1 {
@@ -282,6 +306,63 @@ mod tests {
                 [r * a.cos(), r * a.sin()]
             })
             .collect()
+    }
+
+    /// Every clean cell's code is the even-odd parity of its centre over
+    /// every edge (in f64, the crossing as `cells` computes it): the
+    /// per-edge band windows miss no crossing. Random outlines, gears and
+    /// band counts from 2 to 120.
+    #[test]
+    fn clean_cells_have_the_parity_of_their_centre_over_every_edge() {
+        use proptest::prelude::*;
+        use proptest::test_runner::{Config, TestRunner};
+        let check = |q: &[[f32; 2]], k: usize| {
+            let (vl, vh) = q
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), p| {
+                    (l.min(p[1]), h.max(p[1]))
+                });
+            let inv_h = k as f32 / (vh - vl);
+            let Some((u_lo, inv_w, m, codes)) = cells(q, vl, inv_h, k) else {
+                return;
+            };
+            let (w, h) = (1.0 / inv_w as f64, 1.0 / inv_h as f64);
+            for bb in 0..k {
+                let py = vl as f64 + (bb as f64 + 0.5) * h;
+                for cc in 0..m {
+                    let px = u_lo as f64 + (cc as f64 + 0.5) * w;
+                    let mut right = 0;
+                    for j in 0..q.len() {
+                        let (a, b) = (q[(j + q.len() - 1) % q.len()], q[j]);
+                        let (ax, ay, bx, by) = (a[0] as f64, a[1] as f64, b[0] as f64, b[1] as f64);
+                        if (ay > py) != (by > py) && ax + (py - ay) * (bx - ax) / (by - ay) > px {
+                            right += 1;
+                        }
+                    }
+                    let code = codes[bb * m + cc];
+                    if code != CELL_EDGE {
+                        let want = if right % 2 == 1 { CELL_IN } else { CELL_OUT };
+                        assert_eq!(code, want, "band {bb} column {cc} of {q:?}");
+                    }
+                }
+            }
+        };
+        for teeth in [3, 12, 40] {
+            for k in [2, 7, 33, 120] {
+                check(&star(teeth), k);
+            }
+        }
+        let pt = (-10.0f32..10.0, -10.0f32..10.0).prop_map(|(x, y)| [x, y]);
+        let mut runner = TestRunner::new(Config::with_cases(300));
+        runner
+            .run(
+                &(proptest::collection::vec(pt, 3..40), 2usize..120),
+                |(q, k)| {
+                    check(&q, k);
+                    Ok(())
+                },
+            )
+            .unwrap();
     }
 
     /// Even-odd over all edges, as the tracers do without bands.
