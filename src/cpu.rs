@@ -48,8 +48,8 @@ pub fn render(p: &Packed, progress: &(dyn Fn(u64, u64) + Sync)) -> Frame {
     render_as::<f32>(p, progress)
 }
 
-/// What one band of tiles (a row of them) returns besides its samples,
-/// which it writes into the lattice: what they cost.
+/// What tiles return besides their samples, which they write into the
+/// lattice: what they cost (summed over a band of tiles, then the image).
 pub type BandResult = (RayStats, Work);
 
 /// Renders with the tracer running in float type `F` (f64: the
@@ -96,7 +96,13 @@ pub fn render_packets<F: Real>(
     // left a core idle where the cost is uneven across the image (SPD
     // mount's render used 133 % of two cores, now 180 %).
     let mut samples = vec![[0f32; 3]; (sw * sh) as usize];
-    let bands: Vec<BandResult> = samples
+    let none = || (RayStats::default(), Work::default());
+    let add = |(mut st, mut wk): BandResult, (st2, wk2): BandResult| {
+        st.add(&st2);
+        wk.add(&wk2);
+        (st, wk)
+    };
+    let (stats, work) = samples
         .par_chunks_mut((tile * sw) as usize)
         .with_max_len(1)
         .enumerate()
@@ -151,22 +157,9 @@ pub fn render_packets<F: Real>(
                     progress(d, n_tiles);
                     (stats, work)
                 })
-                .reduce(
-                    || (RayStats::default(), Work::default()),
-                    |(mut st, mut wk), (st2, wk2)| {
-                        st.add(&st2);
-                        wk.add(&wk2);
-                        (st, wk)
-                    },
-                )
+                .reduce(none, add)
         })
-        .collect();
-    let mut stats = RayStats::default();
-    let mut work = Work::default();
-    for (st, wk) in &bands {
-        stats.add(st);
-        work.add(wk);
-    }
+        .reduce(none, add);
     let pixels = if corners {
         resolve_corners_in_place(samples, w, h)
     } else {

@@ -211,11 +211,12 @@ pub fn cells(
     // crossing as a scan of every edge for every band: bands × edges took
     // gears' faces 46 M instructions, more than the BVH build.
     let centre = |bb: usize| v_min as f64 + (bb as f64 + 0.5) * h;
+    // The band whose centre line lies at v, fractional, kept within −1..=k.
+    let band = |v: f64| ((v - v_min as f64) / h - 0.5).clamp(-1.0, k as f64);
     let mut crossings: Vec<(usize, f64)> = Vec::new();
     let mut a = q[n - 1];
     for &b in q {
         let (ax, ay, bx, by) = (a[0] as f64, a[1] as f64, b[0] as f64, b[1] as f64);
-        let band = |v: f64| ((v - v_min as f64) / h - 0.5).clamp(-1.0, k as f64);
         let (first, last) = if ay.is_finite() && by.is_finite() {
             let (lo, hi) = (band(ay.min(by)), band(ay.max(by)));
             (
