@@ -150,7 +150,11 @@ impl<'a> Parser<'a> {
     }
 
     fn new(text: &'a str, path: &'a Path) -> Self {
-        let mut off = 0;
+        Self::new_at(text, path, 0)
+    }
+
+    /// A parser whose first token is the one at or after byte `off`.
+    fn new_at(text: &'a str, path: &'a Path, mut off: usize) -> Self {
         let ahead = scan(text, &mut off);
         Parser {
             text,
@@ -453,52 +457,56 @@ fn value_token<'a>(text: &'a str, entity: Tok<'a>, site: Site) -> Tok<'a> {
     nth_after(text, entity, n)
 }
 
-/// One pass over the text. With `locate`, stops at the entity that makes
-/// that light or object.
-fn pass<'a>(
-    text: &'a str,
-    path: &'a Path,
-    progress: &dyn Fn(u64, u64),
-    locate: Option<Site>,
-) -> Result<Outcome<'a>, SceneError> {
-    let total = text.len() as u64;
-    let mut next_report = 0;
-    let mut p = Parser::new(text, path);
-    let mut view: Option<View> = None;
-    let mut background = DVec3::ZERO;
-    let mut lights: Vec<(DVec3, Option<DVec3>)> = Vec::new();
-    let mut materials = vec![Material::default()];
-    let mut material_index: HashMap<[u64; 8], u32> = HashMap::new();
-    let mut current = 0u32;
-    let mut objects = Vec::new();
-    // Objects are checked against the f32 limits as they are made, once
-    // the camera is known (most files start with `v`); `unchecked` came
-    // before it and are left to the caller.
-    let mut origin: Option<DVec3> = None;
-    let (mut unchecked, mut checked) = (0, 0);
-    let (find_light, find_object) = match locate {
-        Some(Site::Light(i)) => (i, usize::MAX),
-        Some(Site::Object(i, _)) => (usize::MAX, i),
-        _ => (usize::MAX, usize::MAX),
-    };
+/// What the entities other than `v` make, in the order they come: the
+/// whole scene's in one pass, or one stretch's when the text is read in
+/// stretches side by side (`parse_stretch`).
+struct Entities {
+    background: Option<DVec3>,
+    lights: Vec<(DVec3, Option<DVec3>)>,
+    /// The materials made so far, and each one's key (its eight numbers'
+    /// bits; the default material's is never looked up).
+    materials: Vec<Material>,
+    keys: Vec<[u64; 8]>,
+    index: HashMap<[u64; 8], u32>,
+    /// The material of the objects that follow: an index into
+    /// `materials`, or `INHERITED` in a stretch before its first `f`.
+    current: u32,
+    objects: Vec<Object>,
+}
 
-    while let Some(t) = p.peek() {
-        if t.off >= next_report {
-            progress(t.off as u64, total);
-            next_report = t.off + PROGRESS_STEP;
+/// The material of a stretch's objects before its first `f`: whatever
+/// the text before the stretch left current.
+const INHERITED: u32 = u32::MAX;
+
+impl Entities {
+    /// Before the first entity of a file: the default material current.
+    fn file() -> Self {
+        Entities {
+            background: None,
+            lights: Vec::new(),
+            materials: vec![Material::default()],
+            keys: vec![[0; 8]],
+            index: HashMap::new(),
+            current: 0,
+            objects: Vec::new(),
         }
-        p.advance();
+    }
+
+    /// At the start of a stretch: no materials of its own yet.
+    fn stretch() -> Self {
+        Entities {
+            materials: Vec::new(),
+            keys: Vec::new(),
+            current: INHERITED,
+            ..Self::file()
+        }
+    }
+
+    /// Reads entity `t` (its keyword just taken): any but `v` and the
+    /// view's keywords.
+    fn read<'a>(&mut self, p: &mut Parser<'a>, t: Tok<'a>) -> Result<(), SceneError> {
         match t.s {
-            "v" => {
-                if view.is_some() {
-                    return Err(p.err(t, "a second `v` (viewpoint) block"));
-                }
-                let parsed = p.view(t)?;
-                origin = parsed.from.map(|(from, _)| from);
-                (unchecked, checked) = (objects.len(), objects.len());
-                view = Some(parsed);
-            }
-            "b" => background = p.color("b", "background", &v::BACKGROUND)?.0,
+            "b" => self.background = Some(p.color("b", "background", &v::BACKGROUND)?.0),
             "l" => {
                 let (pos, _) = p.vec3("l", "light position", &v::LIGHT_POSITION)?;
                 let color = match p.peek() {
@@ -507,7 +515,7 @@ fn pass<'a>(
                     }
                     _ => None,
                 };
-                lights.push((pos, color));
+                self.lights.push((pos, color));
             }
             "f" => {
                 let (c, _) = p.color("f", "colour", &v::COLOR)?;
@@ -526,7 +534,8 @@ fn pass<'a>(
                 };
                 p.checked(ior_tok, ior, &v::IOR)?;
                 let key = [c.x, c.y, c.z, kd, ks, shine, transmittance, ior].map(f64::to_bits);
-                current = *material_index.entry(key).or_insert_with(|| {
+                let (materials, keys) = (&mut self.materials, &mut self.keys);
+                self.current = *self.index.entry(key).or_insert_with(|| {
                     materials.push(Material {
                         name: format!("nff{}", materials.len()),
                         ka: kd * c,
@@ -540,6 +549,7 @@ fn pass<'a>(
                         ior,
                         absorption: DVec3::ZERO,
                     });
+                    keys.push(key);
                     materials.len() as u32 - 1
                 });
             }
@@ -549,22 +559,22 @@ fn pass<'a>(
                 let (apex, _) = p.vec3("c", "apex", &v::APEX)?;
                 let r1 = p.num("c", "apex radius", &v::APEX_RADIUS)?;
                 p.check(t, v::cone(base, r0, apex, r1))?;
-                objects.push(Object {
+                self.objects.push(Object {
                     shape: Shape::Cone {
                         base,
                         base_radius: r0,
                         apex,
                         apex_radius: r1,
                     },
-                    material: current,
+                    material: self.current,
                 });
             }
             "s" => {
                 let (center, _) = p.vec3("s", "centre", &v::CENTER)?;
                 let radius = p.num("s", "radius", &v::RADIUS)?;
-                objects.push(Object {
+                self.objects.push(Object {
                     shape: Shape::Sphere { center, radius },
-                    material: current,
+                    material: self.current,
                 });
             }
             "p" => {
@@ -584,9 +594,9 @@ fn pass<'a>(
                 if let Err(e) = v::polygon(&vertices) {
                     return Err(p.err(e.index.map_or(t, |i| toks[i]), e.message));
                 }
-                objects.push(Object {
+                self.objects.push(Object {
                     shape: Shape::Polygon { vertices },
-                    material: current,
+                    material: self.current,
                 });
             }
             "pp" => {
@@ -620,16 +630,16 @@ fn pass<'a>(
                     if v::triangle_is_degenerate(&tri) {
                         continue;
                     }
-                    objects.push(Object {
+                    self.objects.push(Object {
                         shape: Shape::Triangle {
                             vertices: tri,
                             normals: Some(Box::new([normals[0], normals[i], normals[i + 1]])),
                         },
-                        material: current,
+                        material: self.current,
                     });
                 }
             }
-            s if VIEW_KEYWORDS.contains(&s) => {
+            s if s == "v" || VIEW_KEYWORDS.contains(&s) => {
                 return Err(p.err(t, format!("`{s}` outside a `v` (viewpoint) block")));
             }
             s => {
@@ -639,12 +649,208 @@ fn pass<'a>(
                 ));
             }
         }
-        if objects.len() > find_object || lights.len() > find_light {
+        Ok(())
+    }
+
+    /// Appends stretch `s`, read after everything in `self`: its
+    /// materials found again or added (in the order a single pass would
+    /// add them, with the names it would give), its objects' materials
+    /// mapped, the material current before its first `f` being `self`'s.
+    fn append(&mut self, s: Entities) {
+        let mut map = Vec::with_capacity(s.materials.len());
+        for (mut m, key) in s.materials.into_iter().zip(s.keys) {
+            let (materials, keys) = (&mut self.materials, &mut self.keys);
+            map.push(*self.index.entry(key).or_insert_with(|| {
+                m.name = format!("nff{}", materials.len());
+                materials.push(m);
+                keys.push(key);
+                materials.len() as u32 - 1
+            }));
+        }
+        let current = self.current;
+        self.objects.extend(s.objects.into_iter().map(|mut o| {
+            o.material = match o.material {
+                INHERITED => current,
+                i => map[i as usize],
+            };
+            o
+        }));
+        if s.current != INHERITED {
+            self.current = map[s.current as usize];
+        }
+        self.lights.extend(s.lights);
+        if s.background.is_some() {
+            self.background = s.background;
+        }
+    }
+}
+
+/// Texts shorter than this are read in one pass: below it, reading in
+/// stretches side by side saves less than it costs.
+const STRETCHES_MIN_BYTES: usize = 1 << 18;
+
+/// Where the stretches a long text is read in begin: the first after a
+/// short head (a 64th of the text, where the view is), then `n` of about
+/// equal size, each at the start of a line whose first token starts an
+/// object or a material (`s`, `p`, `pp`, `c`, `f`). In a valid file such a
+/// line always starts an entity; where it does not (a polygon short of
+/// vertices), the stretches do not join up and the text is read in one
+/// pass after all, which reports the fault (`pass`).
+fn stretch_starts(text: &str, n: usize) -> Vec<usize> {
+    let bytes = text.as_bytes();
+    let head = (text.len() / 64).max(4096);
+    let mut starts: Vec<usize> = Vec::new();
+    for k in 0..n {
+        let mut i = head + (text.len() - head) / n * k;
+        if starts.last().is_some_and(|&l| i <= l) {
+            continue;
+        }
+        // The next line start with an entity's keyword, within 64 kB.
+        let limit = (i + (1 << 16)).min(text.len());
+        while let Some(nl) = bytes[i..limit].iter().position(|&b| b == b'\n') {
+            i += nl + 1;
+            let rest = &bytes[i..];
+            let keyword = ["s", "p", "pp", "c", "f"].iter().any(|w| {
+                rest.starts_with(w.as_bytes()) && matches!(rest.get(w.len()), Some(b' ' | b'\t'))
+            });
+            if keyword {
+                starts.push(i);
+                break;
+            }
+        }
+    }
+    starts
+}
+
+/// Reads the stretch of the text whose first entity starts at byte
+/// `start`, up to the first entity that starts at or after `stop`, the
+/// objects checked against the f32 limits about `origin`. Also returns
+/// where it stopped (the next entity's start; `None` at the end of the
+/// text). Any fault (or a `v`) is an error, which the caller answers by
+/// reading the text in one pass, so that the fault is reported as that
+/// pass reports it.
+fn parse_stretch(
+    text: &str,
+    path: &Path,
+    start: usize,
+    stop: usize,
+    origin: DVec3,
+) -> Result<(Entities, Option<usize>), SceneError> {
+    let mut p = Parser::new_at(text, path, start);
+    let mut e = Entities::stretch();
+    // Room for the objects of a stretch of spheres written tersely (32
+    // bytes each), so that the vector seldom moves as it grows.
+    e.objects
+        .reserve((stop.min(text.len()) - start.min(text.len())) / 32);
+    let mut checked = 0;
+    while let Some(t) = p.peek() {
+        if t.off >= stop {
+            break;
+        }
+        p.advance();
+        e.read(&mut p, t)?;
+        while checked < e.objects.len() {
+            if let Err((_, m)) = v::object_limits(&e.objects[checked].shape, origin) {
+                return Err(p.err(t, m));
+            }
+            checked += 1;
+        }
+    }
+    Ok((e, p.peek().map(|t| t.off)))
+}
+
+/// One pass over the text. With `locate`, stops at the entity that makes
+/// that light or object. A long text (without `locate`) is read in
+/// stretches side by side once the first stretch has given the view,
+/// when they join up (each ends where the next begins); otherwise, and
+/// after any fault in one, in one pass.
+fn pass<'a>(
+    text: &'a str,
+    path: &'a Path,
+    progress: &dyn Fn(u64, u64),
+    locate: Option<Site>,
+) -> Result<Outcome<'a>, SceneError> {
+    let total = text.len() as u64;
+    let mut next_report = 0;
+    let mut p = Parser::new(text, path);
+    let mut view: Option<View> = None;
+    let mut e = Entities::file();
+    // Objects are checked against the f32 limits as they are made, once
+    // the camera is known (most files start with `v`); `unchecked` came
+    // before it and are left to the caller.
+    let mut origin: Option<DVec3> = None;
+    let (mut unchecked, mut checked) = (0, 0);
+    let (find_light, find_object) = match locate {
+        Some(Site::Light(i)) => (i, usize::MAX),
+        Some(Site::Object(i, _)) => (usize::MAX, i),
+        _ => (usize::MAX, usize::MAX),
+    };
+    let threads = rayon::current_num_threads();
+    let starts = if locate.is_none() && text.len() >= STRETCHES_MIN_BYTES && threads > 1 {
+        stretch_starts(text, 2 * threads)
+    } else {
+        Vec::new()
+    };
+    let mut stop = starts.first().copied().unwrap_or(usize::MAX);
+
+    while let Some(t) = p.peek() {
+        if t.off >= stop {
+            // The first stretch read: the rest side by side, if the view
+            // is known and the first stretch ended where the second begins.
+            stop = usize::MAX;
+            let Some(origin) = origin.filter(|_| t.off == starts[0]) else {
+                continue;
+            };
+            let ends: Vec<usize> = starts[1..].to_vec();
+            let read: Vec<_> = {
+                use rayon::prelude::*;
+                starts
+                    .par_iter()
+                    .enumerate()
+                    .map(|(k, &start)| {
+                        let end = ends.get(k).copied().unwrap_or(usize::MAX);
+                        parse_stretch(text, path, start, end, origin)
+                    })
+                    .collect()
+            };
+            let joined = read
+                .iter()
+                .enumerate()
+                .all(|(k, r)| matches!(r, Ok((_, at)) if *at == ends.get(k).copied()));
+            if joined {
+                let count: usize = read.iter().flatten().map(|(s, _)| s.objects.len()).sum();
+                e.objects.reserve(count);
+                for r in read {
+                    e.append(r.expect("checked").0);
+                }
+                checked = e.objects.len();
+                p = Parser::new_at(text, path, text.len());
+                progress(total, total);
+            }
+            continue;
+        }
+        if t.off >= next_report {
+            progress(t.off as u64, total);
+            next_report = t.off + PROGRESS_STEP;
+        }
+        p.advance();
+        if t.s == "v" {
+            if view.is_some() {
+                return Err(p.err(t, "a second `v` (viewpoint) block"));
+            }
+            let parsed = p.view(t)?;
+            origin = parsed.from.map(|(from, _)| from);
+            (unchecked, checked) = (e.objects.len(), e.objects.len());
+            view = Some(parsed);
+        } else {
+            e.read(&mut p, t)?;
+        }
+        if e.objects.len() > find_object || e.lights.len() > find_light {
             return Ok(Outcome::Located(t));
         }
         if let Some(origin) = origin {
-            while checked < objects.len() {
-                if let Err((part, m)) = v::object_limits(&objects[checked].shape, origin) {
+            while checked < e.objects.len() {
+                if let Err((part, m)) = v::object_limits(&e.objects[checked].shape, origin) {
                     let site = Site::Object(checked, part);
                     return Err(p.err(value_token(text, t, site), m));
                 }
@@ -672,6 +878,14 @@ fn pass<'a>(
         .resolution
         .unwrap_or((DEFAULT_RESOLUTION, DEFAULT_RESOLUTION));
 
+    let Entities {
+        background,
+        lights,
+        materials,
+        objects,
+        ..
+    } = e;
+    let background = background.unwrap_or(DVec3::ZERO);
     let grey = DVec3::splat(light_intensity(lights.len()));
     let scene = Scene {
         camera: Camera {
@@ -882,5 +1096,147 @@ mod tests {
             m,
             "truncated `from` entity at end of file: expected eye point z"
         );
+    }
+
+    /// A long NFF of every entity kind, deterministic in `seed`: five
+    /// materials that recur (so stretches meet materials made before
+    /// them), objects before any `f` of their stretch, entities over
+    /// several lines, comments and blank lines, lights and backgrounds
+    /// between objects.
+    fn long_nff(seed: u64, entities: usize) -> String {
+        let mut x = seed;
+        let mut next = move |n: u64| {
+            x = x
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (x >> 33) % n
+        };
+        let mut t = String::from(VIEW);
+        t.push_str("l 1 2 3\n");
+        for _ in 0..entities {
+            let c = |k: u64| k as f64 * 0.37 - 3.0;
+            match next(20) {
+                0 => {
+                    let m = next(5) as f64;
+                    t += &format!("f {} 0.5 0.25 0.7 0.3 {} 0 1\n", 0.1 * m, 5.0 + m);
+                }
+                1 => t += &format!("l {} 4 5 0.5 0.5 0.5\n", c(next(16))),
+                2 => {
+                    t += &format!(
+                        "b 0.{} 0.2 0.3\n# a comment, then a blank line\n\n",
+                        next(9)
+                    )
+                }
+                3 | 4 => {
+                    let (a, b) = (c(next(16)), c(next(16)));
+                    t += &format!(
+                        "p 4\n{a} {b} 0\n{} {b} 0\n{} {} 0\n{a} {} 0\n",
+                        a + 1.0,
+                        a + 1.0,
+                        b + 1.0,
+                        b + 1.0
+                    );
+                }
+                5 => t += &format!("c\n{} 0 0 0.5\n{} 0 2 0.25\n", c(next(16)), c(next(16))),
+                6 => {
+                    t += &format!(
+                        "pp 3\n0 0 {0} 0 0 1\n1 0 {0} 0 0 1\n0 1 {0} 0 0 1\n",
+                        c(next(16))
+                    )
+                }
+                _ => {
+                    t += &format!(
+                        "s {} {} {} 0.{}\n",
+                        c(next(16)),
+                        c(next(16)),
+                        c(next(16)),
+                        1 + next(8)
+                    )
+                }
+            }
+        }
+        t
+    }
+
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    /// A long text read in stretches side by side gives the scene of one
+    /// pass: the same objects, materials (found again across stretches,
+    /// numbered and named as one pass does), lights and background.
+    #[test]
+    fn stretches_read_what_one_pass_reads() {
+        for seed in 1..4 {
+            let text = long_nff(seed, 30_000);
+            assert!(text.len() >= STRETCHES_MIN_BYTES, "{}", text.len());
+            // The stretches are really read side by side, and join up.
+            let starts = stretch_starts(&text, 8);
+            assert!(starts.len() >= 6, "{starts:?}");
+            let origin = DVec3::new(0.0, -10.0, 2.0);
+            for (k, &start) in starts.iter().enumerate() {
+                let end = starts.get(k + 1).copied();
+                let (e, at) = parse_stretch(
+                    &text,
+                    Path::new("t.nff"),
+                    start,
+                    end.unwrap_or(usize::MAX),
+                    origin,
+                )
+                .unwrap_or_else(|e| panic!("{e}"));
+                assert_eq!(at, end);
+                assert!(!e.objects.is_empty());
+            }
+            let one = in_pool(1, || parse_ok(&text));
+            let side_by_side = in_pool(4, || parse_ok(&text));
+            assert!(one.materials.len() > 3 && one.objects.len() > 20_000);
+            assert_eq!(one, side_by_side, "seed {seed}");
+        }
+    }
+
+    /// A fault in a long text is reported as one pass reports it, whichever
+    /// stretch it falls in, also where it makes the stretches not join up
+    /// (a polygon short of a vertex, whose next line starts an entity).
+    #[test]
+    fn stretches_report_faults_as_one_pass_does() {
+        let text = long_nff(7, 30_000);
+        let lines: Vec<&str> = text.lines().collect();
+        type Fault = fn(&str) -> Option<String>;
+        let faults: [(&str, Fault); 3] = [
+            ("a bad number", |l| {
+                l.starts_with("s ").then(|| "s 1 2 x 0.5".into())
+            }),
+            ("a short polygon", |l| {
+                l.starts_with("p 4").then(|| "p 5".into())
+            }),
+            ("an unknown entity", |l| {
+                l.starts_with("s ").then(|| "q 1 2 3".into())
+            }),
+        ];
+        for (what, fault) in faults {
+            for frac in [0.3, 0.55, 0.9] {
+                let mut lines = lines.clone();
+                let from = (lines.len() as f64 * frac) as usize;
+                let at = (from..lines.len())
+                    .find(|&i| fault(lines[i]).is_some())
+                    .unwrap();
+                let bad = fault(lines[at]).unwrap();
+                lines[at] = &bad;
+                let bad_text = lines.join("\n");
+                let one = in_pool(1, || parse_err(&bad_text));
+                let side_by_side = in_pool(4, || parse_err(&bad_text));
+                assert_eq!(one, side_by_side, "{what} at {frac}");
+                assert!(
+                    one.0 >= at,
+                    "{what}: line {} before the fault's {}",
+                    one.0,
+                    at + 1
+                );
+            }
+        }
     }
 }
