@@ -35,6 +35,7 @@ fn const_u32(name: &str) -> u32 {
         "STACK_SIZE" => STACK_SIZE,
         "GRID_MAX_DIM" => GRID_MAX_DIM,
         "SHADOW_CACHE_LIGHTS" => SHADOW_CACHE_LIGHTS,
+        "SHADOW_CACHE_LEVELS" => SHADOW_CACHE_LEVELS,
         "SKIP_MAX" => SKIP_MAX,
         "BVH_STACK_SIZE" => BVH_STACK_SIZE,
         "BVH_WIDTH" => BVH_WIDTH,

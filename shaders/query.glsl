@@ -15,10 +15,14 @@
 #include "precise.glsl"
 #include "intersect.glsl"
 
-// Shadow cache (Rust: Work::shadow_cache): per light, 1 + the index of the
-// opaque primitive that last blocked a feeler to it (0: none). It never
-// changes a result; reset per invocation (shadow_cache_reset).
-uint shadow_cache[SHADOW_CACHE_LIGHTS];
+// Shadow cache (Rust: Work::shadow_cache): per level of the ray tree and
+// per light (level * SHADOW_CACHE_LIGHTS + light), 1 + the index of the
+// opaque primitive that last blocked a feeler to it from that level (0:
+// none). It never changes a result; reset per invocation
+// (shadow_cache_reset). shadow_level is the level feelers use now
+// (Rust: Work::level, set by shadow_cache_at_depth).
+uint shadow_cache[SHADOW_CACHE_LEVELS * SHADOW_CACHE_LIGHTS];
+uint shadow_level = 0u;
 
 // lavapipe (llvmpipe 22.3) gives each SIMD group of invocations a budget
 // of 65535 loop iterations for the whole shader, then silently runs every
@@ -36,9 +40,22 @@ uint work_cells = 0u;
 uint work_nodes = 0u;
 
 void shadow_cache_reset() {
-    for (uint i = 0u; i < SHADOW_CACHE_LIGHTS; i++) {
+    for (uint i = 0u; i < SHADOW_CACHE_LEVELS * SHADOW_CACHE_LIGHTS; i++) {
         shadow_cache[i] = 0u;
     }
+    shadow_level = 0u;
+}
+
+// Feelers from now on are cast from the hit of a ray of `depth` (Rust:
+// Work::at_depth).
+void shadow_cache_at_depth(uint depth) {
+    shadow_level = min(depth, SHADOW_CACHE_LEVELS - 1u);
+}
+
+// The shadow cache's slot for light (< SHADOW_CACHE_LIGHTS) at the
+// current level.
+uint shadow_slot(uint light) {
+    return shadow_level * SHADOW_CACHE_LIGHTS + light;
 }
 
 // One query in progress.
@@ -112,7 +129,7 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
             PRECISE vec3 trans = q.trans * kt;
             q.trans = trans;
             if (max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
-                shadow_cache[q.light] = i + 1u;
+                shadow_cache[shadow_slot(q.light)] = i + 1u;
             }
             if (max_elem(q.trans) <= 0.0) {
                 q.done = true;

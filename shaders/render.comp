@@ -164,6 +164,7 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
             stats.eye_hit += 1u;
         }
         Surface sf = surface_at(e, h, pi);
+        shadow_cache_at_depth(e.depth);
         vec3 local_ = shade(sf.mat, sf.p, e.d, sf.n, sf.ngf, sf.front, sf.weighted);
         if (sf.weighted) {
             color = add_weighted(color, sf.w, local_);

@@ -172,6 +172,7 @@ vec3 trace_ray(Ray ray) {
             stats.eye_hit += 1u;
         }
         Surface s = surface_at(e, h, pi);
+        shadow_cache_at_depth(e.depth);
         vec3 local_ = shade(s.mat, s.p, e.d, s.n, s.ngf, s.front, s.weighted);
         if (s.weighted) {
             color = add_weighted(color, s.w, local_);

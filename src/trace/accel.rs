@@ -70,7 +70,7 @@ pub fn transmittance<F: Real>(
     work: &mut Work,
 ) -> V3<F> {
     let cached = if light < SHADOW_CACHE_LIGHTS as usize {
-        work.shadow_cache[light]
+        *work.cached(light)
     } else {
         0
     };

@@ -12,7 +12,7 @@
 use super::intersect::{intersect, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::SceneView;
-use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LIGHTS};
+use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LEVELS, SHADOW_CACHE_LIGHTS};
 use crate::pack::layout::Prim;
 
 /// Per-thread scratch of the tracer: counters of intersection work (for
@@ -25,15 +25,33 @@ pub struct Work {
     pub cells: u64,
     /// BVH nodes visited (each one tests its up to four children's boxes).
     pub nodes: u64,
-    /// Shadow cache (Haines & Greenberg's "last blocker"): per light, 1 + the
-    /// index of the opaque primitive that last blocked a feeler to it (0:
-    /// none). Tested first, it answers most shadowed feelers without a
-    /// traversal. It never changes a result: an opaque blocker makes the
-    /// transmittance exactly zero whatever else the feeler crosses.
-    pub shadow_cache: [u32; SHADOW_CACHE_LIGHTS as usize],
+    /// Shadow cache (Haines & Greenberg's "last blocker"): per level of the
+    /// ray tree and per light, 1 + the index of the opaque primitive that
+    /// last blocked a feeler to it from that level (0: none). Tested
+    /// first, it answers most shadowed feelers without a traversal. It
+    /// never changes a result: an opaque blocker makes the transmittance
+    /// exactly zero whatever else the feeler crosses.
+    pub shadow_cache: [[u32; SHADOW_CACHE_LIGHTS as usize]; SHADOW_CACHE_LEVELS as usize],
+    /// The level of the ray tree whose cache feelers use now (the ray's
+    /// depth, the deepest levels sharing the last: `Work::at_depth`).
+    pub level: usize,
 }
 
 impl Work {
+    /// Feelers from now on are cast from the hit of a ray of `depth`
+    /// (0: an eye ray): they use that level's shadow cache.
+    #[inline(always)]
+    pub fn at_depth(&mut self, depth: u32) {
+        self.level = (depth as usize).min(SHADOW_CACHE_LEVELS as usize - 1);
+    }
+
+    /// The shadow cache's entry for `light` (< `SHADOW_CACHE_LIGHTS`) at
+    /// the current level.
+    #[inline(always)]
+    pub fn cached(&mut self, light: usize) -> &mut u32 {
+        &mut self.shadow_cache[self.level % SHADOW_CACHE_LEVELS as usize][light]
+    }
+
     /// Adds `o`'s counters (not its cache).
     pub fn add(&mut self, o: &Work) {
         self.tests += o.tests;
@@ -167,7 +185,7 @@ pub fn query_hit<F: Real>(
         }
         q.trans = q.trans.mul_elem(kt);
         if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
-            work.shadow_cache[q.light] = i + 1;
+            *work.cached(q.light) = i + 1;
         }
         if q.trans.max_elem() <= F::zero() {
             q.done = true;

@@ -115,6 +115,7 @@ pub fn trace_ray_from<F: Real>(
         // A ray of weight 0 (SPD counting) adds nothing: its feelers are
         // counted, not traced, and its local intensity is not added.
         let weighted = w.max_elem() > F::zero();
+        work.at_depth(e.depth);
         let local = shade(s, mat, p, e.d, n, ngf, front, weighted, stats, work);
         if weighted {
             color += w.mul_elem(local);
