@@ -1195,6 +1195,10 @@ mod tests {
             let side_by_side = in_pool(4, || parse_ok(&text));
             assert!(one.materials.len() > 3 && one.objects.len() > 20_000);
             assert_eq!(one, side_by_side, "seed {seed}");
+            // Windows line ends read the same.
+            let crlf = text.replace('\n', "\r\n");
+            assert!(stretch_starts(&crlf, 8).len() >= 6);
+            assert_eq!(one, in_pool(4, || parse_ok(&crlf)), "seed {seed}, CRLF");
         }
     }
 
@@ -1206,7 +1210,7 @@ mod tests {
         let text = long_nff(7, 30_000);
         let lines: Vec<&str> = text.lines().collect();
         type Fault = fn(&str) -> Option<String>;
-        let faults: [(&str, Fault); 3] = [
+        let faults: [(&str, Fault); 4] = [
             ("a bad number", |l| {
                 l.starts_with("s ").then(|| "s 1 2 x 0.5".into())
             }),
@@ -1216,6 +1220,7 @@ mod tests {
             ("an unknown entity", |l| {
                 l.starts_with("s ").then(|| "q 1 2 3".into())
             }),
+            ("a second view", |l| l.starts_with("s ").then(|| "v".into())),
         ];
         for (what, fault) in faults {
             for frac in [0.3, 0.55, 0.9] {
