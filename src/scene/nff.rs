@@ -801,33 +801,32 @@ fn pass<'a>(
             let Some(origin) = origin.filter(|_| t.off == starts[0]) else {
                 continue;
             };
-            let ends: Vec<usize> = starts[1..].to_vec();
+            // Stretch k ends where stretch k + 1 begins, the last at the end.
+            let end = |k: usize| starts.get(k + 1).copied();
             let read: Vec<_> = {
                 use rayon::prelude::*;
                 starts
                     .par_iter()
                     .enumerate()
                     .map(|(k, &start)| {
-                        let end = ends.get(k).copied().unwrap_or(usize::MAX);
-                        parse_stretch(text, path, start, end, origin)
+                        parse_stretch(text, path, start, end(k).unwrap_or(usize::MAX), origin)
                     })
                     .collect()
             };
             let joined = read
                 .iter()
                 .enumerate()
-                .all(|(k, r)| matches!(r, Ok((_, at)) if *at == ends.get(k).copied()));
-            if joined {
-                let count: usize = read.iter().flatten().map(|(s, _)| s.objects.len()).sum();
-                e.objects.reserve(count);
-                for r in read {
-                    e.append(r.expect("checked").0);
-                }
-                checked = e.objects.len();
-                p = Parser::new_at(text, path, text.len());
-                progress(total, total);
+                .all(|(k, r)| matches!(r, Ok((_, at)) if *at == end(k)));
+            if !joined {
+                continue;
             }
-            continue;
+            let count: usize = read.iter().flatten().map(|(s, _)| s.objects.len()).sum();
+            e.objects.reserve(count);
+            for r in read {
+                e.append(r.expect("checked").0);
+            }
+            // The stretches checked their objects and read to the end.
+            break;
         }
         if t.off >= next_report {
             progress(t.off as u64, total);
