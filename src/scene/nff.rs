@@ -822,8 +822,9 @@ fn pass<'a>(
             }
             let count: usize = read.iter().flatten().map(|(s, _)| s.objects.len()).sum();
             e.objects.reserve(count);
-            for r in read {
+            for (k, r) in read.into_iter().enumerate() {
                 e.append(r.expect("checked").0);
+                progress(end(k).map_or(total, |x| x as u64), total);
             }
             // The stretches checked their objects and read to the end.
             break;
