@@ -115,7 +115,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
         }
         bool next = true;
         if (in_leaf) {
-            uint i = nested ? refs[link] : link;
+            uint i = nested ? ref_at(link) : link;
             Prim prim = load_prim(i);
             if (!(nested && listed_at(prim, prev_axis, prev_coord)) &&
                 query_prim(q, prim, i, ray, pre)) {
@@ -128,7 +128,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             next = !in_leaf;
         } else if (count == 0u && t <= q.t) {
             work_nodes += 1u;
-            BvhNode n = bvh[link];
+            BvhNode n = bvh_node(link);
             vec4 te;
             bvec4 hit = bvh_entries(n, ray, pre, q.t, te);
             // Lanes entered (not empty ones) keep their distance and
@@ -186,8 +186,8 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             }
             sp -= 1u;
             uint slot = stack_slot[sp];
-            link = bvh[slot / BVH_WIDTH].link[slot % BVH_WIDTH];
-            count = bvh[slot / BVH_WIDTH].count[slot % BVH_WIDTH];
+            link = bvh_links(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+            count = bvh_counts(slot / BVH_WIDTH)[slot % BVH_WIDTH];
             t = stack_t[sp];
         }
     }

@@ -147,7 +147,7 @@ bool dda_advance(inout Dda dda, int axis) {
 // Empty-space distance of cell ci (0: the cell lists primitives): the bytes
 // after the ncells + 1 offsets in cell_start.
 uint cell_skip(uint ci) {
-    uint word = cell_start[g.grid_dims.w + 1u + ci / 4u];
+    uint word = cell_start_at(g.grid_dims.w + 1u + ci / 4u);
     return (word >> (8u * (ci % 4u))) & 255u;
 }
 
@@ -254,15 +254,15 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
         bool one = false;
         uint single = 0u;
         if (CELLS_PAIRS) {
-            uvec2 c = uvec2(cell_start[2u * ci], cell_start[2u * ci + 1u]);
+            uvec2 c = uvec2(cell_start_at(2u * ci), cell_start_at(2u * ci + 1u));
             skip = c.y == 0u ? int(c.x) : 0;
             start = c.y > 1u ? c.x : 0u;
             end = c.y > 1u ? c.x + c.y : c.y;
             one = c.y == 1u;
             single = c.x;
         } else {
-            start = cell_start[ci];
-            end = cell_start[ci + 1u];
+            start = cell_start_at(ci);
+            end = cell_start_at(ci + 1u);
             skip = start == end ? int(cell_skip(ci)) : 0;
         }
         if (skip >= 2) {
@@ -278,7 +278,7 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
         float t_exit = dda_exit(dda, axis);
         uint k = start;
         for (; k < end; k++) {
-            uint r = one ? single : refs[k];
+            uint r = one ? single : ref_at(k);
             if (uses_accel(ACCEL_HYBRID) && (r & HYBRID_NODE) != 0u) {
                 // A crowded cell's own BVH (src/pack/hybrid.rs), its
                 // leaves' primitives skipped as the list's would be.

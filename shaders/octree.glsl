@@ -26,17 +26,17 @@ uint octree_path[OCTREE_MAX_LEVELS + 1u];
 bool octree_leaf(ivec3 p, inout uint level, out int size) {
     uint node = octree_path[level];
     int half_side = int(g.grid_dims.x >> (level + 1u));
-    while (half_side > 0 && cell_start[2u * node + 1u] == OCTREE_INTERIOR) {
+    while (half_side > 0 && cell_start_at(2u * node + 1u) == OCTREE_INTERIOR) {
         work_nodes += 1u;
         uint c = ((p.x & half_side) != 0 ? 1u : 0u) | ((p.y & half_side) != 0 ? 2u : 0u)
                  | ((p.z & half_side) != 0 ? 4u : 0u);
-        node = cell_start[2u * node] + c;
+        node = cell_start_at(2u * node) + c;
         level += 1u;
         octree_path[level] = node;
         half_side >>= 1;
     }
     size = half_side == 0 ? 1 : 2 * half_side;
-    return half_side == 0 || cell_start[2u * node + 1u] != OCTREE_INTERIOR;
+    return half_side == 0 || cell_start_at(2u * node + 1u) != OCTREE_INTERIOR;
 }
 
 // Where a ray crosses a lattice plane. (A function of plain values:
@@ -63,8 +63,8 @@ void octree_leaf_query(inout Query q, Ray ray, RayPre pre, uint node, float lo, 
                        inout uint prev_start, inout uint prev_end) {
     q.lo = lo;
     q.hi = hi;
-    uint start = cell_start[2u * node];
-    uint end = start + cell_start[2u * node + 1u];
+    uint start = cell_start_at(2u * node);
+    uint end = start + cell_start_at(2u * node + 1u);
     uint j = prev_start;
     uint j_end = prev_end;
     if (end > start) {
@@ -73,12 +73,12 @@ void octree_leaf_query(inout Query q, Ray ray, RayPre pre, uint node, float lo, 
     }
     uint k = start;
     for (; k < end; k++) {
-        uint r = refs[k];
+        uint r = ref_at(k);
         if (!q.shadow) {
-            while (j < j_end && refs[j] < r) {
+            while (j < j_end && ref_at(j) < r) {
                 j++;
             }
-            if (j < j_end && refs[j] == r) {
+            if (j < j_end && ref_at(j) == r) {
                 continue;
             }
         }
@@ -214,7 +214,7 @@ void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
     bool ended = false;
     for (uint visited = 0u; visited < g.grid_dims.w; visited++) {
         uint node = cur.node;
-        if (cell_start[2u * node + 1u] == OCTREE_INTERIOR) {
+        if (cell_start_at(2u * node + 1u) == OCTREE_INTERIOR) {
             work_nodes += 1u;
             int half_side = side >> (cur.level + 1u);
             vec3 tm = vec3(INF);
@@ -248,7 +248,7 @@ void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
             if (key[a2] < key[a1]) { int t = a1; a1 = a2; a2 = t; }
             if (key[a1] < key[a0]) { int t = a0; a0 = a1; a1 = t; }
             m = uint(crossed.x) + uint(crossed.y) + uint(crossed.z);
-            uint base = cell_start[2u * node];
+            uint base = cell_start_at(2u * node);
             OctreePending seq[4];
             float t = cur.t_in;
             ivec3 ord = ivec3(a0, a1, a2);

@@ -623,6 +623,120 @@ fn prim_layouts_do_not_change_the_image() {
     common::assert_no_validation_errors();
 }
 
+/// `--reads texel` (the primitives, the BVH and the cell and reference
+/// lists read through texel buffer views) and `--reads storage` give the
+/// same image, rays and work on every scene file under every structure
+/// and walk, with either primitive layout and either kernel, and the CPU
+/// mirror's bit for bit on lavapipe; where an array has more texels than
+/// the device's views hold, the reads fall back to storage buffers.
+#[test]
+fn texel_and_storage_reads_give_one_image() {
+    use whitted::gpu::{CellLayout, GpuKernel, GpuReads, PrimLayout};
+    use whitted::pack::octree::{Params, Walk};
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    assert!(
+        g.info().max_texel_buffer_elements >= 65536,
+        "the Vulkan minimum"
+    );
+    let structures = [
+        (Accel::Grid, Walk::Neighbour),
+        (Accel::Bvh, Walk::Neighbour),
+        (Accel::Octree, Walk::Neighbour),
+        (Accel::Octree, Walk::Stack),
+        (Accel::Hybrid, Walk::Neighbour),
+    ];
+    for path in scene_files() {
+        for (accel, walk) in structures {
+            let settings = Settings {
+                accel,
+                octree: Params {
+                    walk,
+                    ..Default::default()
+                },
+                hybrid_cell: 2,
+                ..common::small(32, 24)
+            };
+            let p = common::load(&path, &settings);
+            let name = format!("{} {accel:?} {walk:?}", path.display());
+            let with = |reads, prim_layout, kernel| GpuOptions {
+                reads,
+                prim_layout,
+                kernel,
+                ..Default::default()
+            };
+            // The texel reads are specialization bit 11 (`TEXELS`).
+            let key = |reads| {
+                whitted::gpu::layout_key(&with(reads, PrimLayout::Aos, GpuKernel::Mega), &p)
+            };
+            assert_eq!(
+                (
+                    key(GpuReads::Texel) >> 11 & 1,
+                    key(GpuReads::Storage) >> 11 & 1
+                ),
+                (1, 0)
+            );
+            // load_prim serves every walk: the SoA layout under one.
+            let mut variants = vec![(PrimLayout::Aos, GpuKernel::Mega)];
+            match accel {
+                Accel::Grid => variants.push((PrimLayout::Soa, GpuKernel::Mega)),
+                Accel::Bvh => variants.push((PrimLayout::Aos, GpuKernel::Wavefront)),
+                _ => {}
+            }
+            let mut first = None;
+            for (layout, kernel) in variants {
+                let [storage, texel] = [GpuReads::Storage, GpuReads::Texel].map(|reads| {
+                    g.render(&p, &with(reads, layout, kernel), &|_, _| {})
+                        .unwrap()
+                });
+                let what = format!("{name} {layout:?} {kernel:?}");
+                assert!(
+                    bits(&texel) == bits(&storage),
+                    "{what}: texel and storage reads differ"
+                );
+                assert_eq!(texel.stats, storage.stats, "{what}");
+                // The work too (the wavefront's shadow cache lives
+                // differently, so only against the same kernel).
+                assert_eq!(texel.work, storage.work, "{what}");
+                first.get_or_insert(storage);
+            }
+            let storage = first.unwrap();
+            if exact {
+                let cpu = cpu::render(&p, &|_, _| {});
+                assert!(
+                    bits(&storage) == bits(&cpu),
+                    "{name}: against the CPU mirror"
+                );
+            }
+        }
+    }
+    // The fallback: one texel short of the longest array read as texels.
+    let p = common::load(
+        &common::repo().join("scenes/showcase.toml"),
+        &Settings {
+            accel: Accel::Bvh,
+            ..common::small(8, 8)
+        },
+    );
+    let longest = [
+        p.prims.len() as u64 * 4,
+        CellLayout::Pairs.bytes(&p) / 4,
+        p.refs.len() as u64,
+        p.bvh.len() as u64 * 8,
+    ]
+    .into_iter()
+    .max()
+    .unwrap();
+    let fit = |m| GpuReads::Texel.fitting(&p, CellLayout::Pairs, m);
+    assert_eq!(fit(longest), GpuReads::Texel);
+    assert_eq!(fit(longest - 1), GpuReads::Storage);
+    assert_eq!(
+        GpuReads::Storage.fitting(&p, CellLayout::Pairs, u64::MAX),
+        GpuReads::Storage
+    );
+    common::assert_no_validation_errors();
+}
+
 /// `--cell-layout pairs` (the grid's cells as (start, count) pairs, one
 /// reference inline, the skip in the pair): the same image, counts and
 /// work as the packed offsets on every scene file under the grid, on

@@ -217,6 +217,13 @@ pub struct GpuArgs {
     /// grid and hybrid only (docs/profiling.md, "The grid's cell lists").
     #[arg(long, value_enum, value_name = "LAYOUT", default_value_t = gpu::CellLayout::Pairs)]
     pub cell_layout: gpu::CellLayout,
+    /// How the GPU reads the scene's arrays: `texel`, through uniform
+    /// texel buffer views (storage buffers where an array is longer than
+    /// the device's maxTexelBufferElements), or `storage`, as storage
+    /// buffers. The same image; the speed is the device's (docs/
+    /// profiling.md, "Texel reads").
+    #[arg(long, value_enum, value_name = "READS", default_value_t = gpu::GpuReads::Texel)]
+    pub reads: gpu::GpuReads,
     /// How the GPU walks the ray tree: `mega`, one invocation per pixel
     /// walking its whole tree (one dispatch per tile), or `wavefront`,
     /// queues of rays processed stage by stage (generate, closest hit,
@@ -256,6 +263,7 @@ impl GpuArgs {
             math: self.gpu_math,
             prim_layout: self.prim_layout,
             cell_layout: self.cell_layout,
+            reads: self.reads,
             kernel: self.kernel.unwrap_or_default(),
             saved_kernel: self.kernel.is_none(),
             lane_pixels: self.lane_pixels.unwrap_or(0),

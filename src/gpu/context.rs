@@ -180,6 +180,9 @@ pub struct DeviceInfo {
     pub vendor_id: u32,
     pub device_id: u32,
     pub max_storage_buffer_range: u64,
+    /// Texels a uniform texel buffer view may hold (the scene's arrays
+    /// are read through such views: `GpuReads`).
+    pub max_texel_buffer_elements: u64,
     pub max_compute_work_group_invocations: u32,
     pub max_compute_work_group_size: [u32; 3],
     pub max_compute_work_group_count: [u32; 3],
@@ -474,6 +477,7 @@ impl Instance {
             vendor_id: props.vendor_id,
             device_id: props.device_id,
             max_storage_buffer_range: l.max_storage_buffer_range as u64,
+            max_texel_buffer_elements: l.max_texel_buffer_elements as u64,
             max_compute_work_group_invocations: l.max_compute_work_group_invocations,
             max_compute_work_group_size: l.max_compute_work_group_size,
             max_compute_work_group_count: l.max_compute_work_group_count,

@@ -29,6 +29,10 @@ pub struct Buffer {
     pub(crate) buffer: vk::Buffer,
     allocation: Option<Allocation>,
     pub size: u64,
+    /// A view of the whole buffer as 16-byte texels (R32G32B32A32_UINT),
+    /// for the shaders' texel-buffer bindings (`TEXEL_BINDINGS`); null
+    /// until `add_texel_view`.
+    pub(crate) view: vk::BufferView,
 }
 
 impl Buffer {
@@ -96,6 +100,7 @@ impl Buffer {
             buffer,
             allocation: Some(allocation),
             size,
+            view: vk::BufferView::null(),
         };
         let a = me.allocation.as_ref().unwrap();
         // SAFETY: the allocation satisfies the buffer's requirements and is
@@ -162,7 +167,9 @@ impl Buffer {
             ctx,
             name,
             data.len() as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuOnly,
         )?;
         if !staged {
@@ -194,6 +201,31 @@ impl Buffer {
             )
         })?;
         Ok(buf)
+    }
+
+    /// Makes `view`: the buffer as texels of `format` (R32G32B32A32_UINT
+    /// or R32_UINT), at most `max_texels` of them (maxTexelBufferElements:
+    /// a longer array is read as a storage buffer, `GpuReads::fitting`,
+    /// and its view only keeps the binding valid). Only for buffers made
+    /// by `upload`.
+    pub fn add_texel_view(&mut self, format: vk::Format, max_texels: u64) -> Result<(), GpuError> {
+        let texel = if format == vk::Format::R32_UINT {
+            4
+        } else {
+            16
+        };
+        let range = (self.size / texel).min(max_texels).max(1) * texel;
+        let info = vk::BufferViewCreateInfo::default()
+            .buffer(self.buffer)
+            .format(format)
+            .offset(0)
+            .range(range);
+        // SAFETY: the buffer is live and was made with UNIFORM_TEXEL_BUFFER
+        // usage (`upload`); the range lies inside it (its size is a
+        // multiple of 16 and at least 16) and holds at most `max_texels`.
+        self.view =
+            unsafe { self.ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
+        Ok(())
     }
 
     /// A host-readable storage buffer the shader writes (output, counters).
@@ -279,8 +311,12 @@ impl Drop for Buffer {
             return;
         }
         // SAFETY: every submission that used this buffer was waited for
-        // (each submit waits on its fence); buffer before its memory.
-        unsafe { self.ctx.device.destroy_buffer(self.buffer, None) };
+        // (each submit waits on its fence); view, then buffer, then its
+        // memory; a null view is ignored.
+        unsafe {
+            self.ctx.device.destroy_buffer_view(self.view, None);
+            self.ctx.device.destroy_buffer(self.buffer, None)
+        };
         if let Some(a) = self.allocation.take() {
             let _ = self
                 .ctx

@@ -446,6 +446,42 @@ impl CellLayout {
     }
 }
 
+/// How the kernels read the scene's arrays (`--reads`; docs/profiling.md,
+/// "Texel reads"): the same buffers, the same values bit for bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GpuReads {
+    /// The primitives, the BVH and the cell and reference lists through
+    /// uniform texel buffer views (bindings 20 to 23; the other arrays
+    /// as storage buffers): on lavapipe 15-30 % less device time. The
+    /// default; storage buffers where one of the four has more texels
+    /// than the device's maxTexelBufferElements.
+    #[default]
+    Texel,
+    /// Every array as a storage buffer (bindings 1 to 6, 11 to 13).
+    Storage,
+}
+
+impl GpuReads {
+    /// The reads to use on a device whose texel views hold at most
+    /// `max_texels` texels: storage buffers when one of `p`'s four arrays
+    /// read as texels (`texel_binding`) has more, with the cells in
+    /// layout `cells`.
+    pub fn fitting(self, p: &crate::pack::Packed, cells: CellLayout, max_texels: u64) -> GpuReads {
+        let texels = [
+            std::mem::size_of_val(p.prims.as_slice()) as u64 / 16,
+            cells.bytes(p) / 4,
+            p.refs.len() as u64,
+            std::mem::size_of_val(p.bvh.as_slice()) as u64 / 16,
+        ];
+        if self == GpuReads::Texel && texels.iter().any(|&t| t > max_texels) {
+            GpuReads::Storage
+        } else {
+            self
+        }
+    }
+}
+
 /// The render kernel's float arithmetic (`--gpu-math`; docs/gpu.md,
 /// "Exact and fast shader arithmetic").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -601,6 +637,8 @@ pub struct GpuOptions {
     pub cell_layout: CellLayout,
     /// The megakernel or the wavefront kernel.
     pub kernel: GpuKernel,
+    /// How the kernels read the scene's arrays.
+    pub reads: GpuReads,
     /// Lattice points one invocation of the megakernel renders, each
     /// sample started inside one ray loop (`LANE_PIXELS`, render.comp;
     /// 1..=`MAX_LANE_PIXELS`; the wavefront ignores it). 0: by the
@@ -634,6 +672,7 @@ impl Default for GpuOptions {
             cell_layout: CellLayout::Pairs,
             lane_pixels: 0,
             kernel: GpuKernel::Mega,
+            reads: GpuReads::Texel,
         }
     }
 }
@@ -719,12 +758,41 @@ struct SceneBuffers {
     bufs: Vec<(u32, Buffer)>,
 }
 
+/// The texel-buffer binding (`layout.glsl`, `TEXELS`) that reads scene
+/// binding `b` again, and its texel format: the primitives (1) and the
+/// BVH (11) in 16-byte texels, the cell and reference lists (5, 6) in
+/// 4-byte ones. The other arrays were slower on lavapipe read as texels
+/// (docs/profiling.md, "Texel reads") and are only storage buffers.
+fn texel_binding(b: u32) -> Option<(u32, vk::Format)> {
+    Some(match b {
+        1 => (20, vk::Format::R32G32B32A32_UINT),
+        5 => (21, vk::Format::R32_UINT),
+        6 => (22, vk::Format::R32_UINT),
+        11 => (23, vk::Format::R32G32B32A32_UINT),
+        _ => return None,
+    })
+}
+
+/// The texel-buffer bindings (`texel_binding`).
+const TEXEL_BINDINGS: [u32; 4] = [20, 21, 22, 23];
+
+/// render.comp's bindings: the scene's, the samples (7), the counters (8).
+const RENDER_BINDINGS: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 13, 20, 21, 22, 23];
+/// probe.comp's: the scene's, the items (9), the results (10).
+const PROBE_BINDINGS: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 9, 10, 11, 12, 13, 20, 21, 22, 23];
+
 /// The scene's bindings (`layout.glsl`); 7 to 10 are the kernels' own.
 const SCENE_BINDINGS: [u32; 10] = [0, 1, 2, 3, 4, 5, 6, 11, 12, 13];
 
 impl SceneBuffers {
     fn bindings(&self) -> Vec<(u32, &Buffer)> {
-        self.bufs.iter().map(|(i, b)| (*i, b)).collect()
+        let mut v: Vec<(u32, &Buffer)> = self.bufs.iter().map(|(i, b)| (*i, b)).collect();
+        for (i, b) in &self.bufs {
+            if let Some((t, _)) = texel_binding(*i) {
+                v.push((t, b));
+            }
+        }
+        v
     }
 }
 
@@ -764,7 +832,9 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
         PrimLayout::Aos => 0,
         PrimLayout::Soa => 1 << 9,
     };
-    prims | u32::from(opts.cell_layout.applies(p)) << 10
+    prims
+        | u32::from(opts.cell_layout.applies(p)) << 10
+        | u32::from(opts.reads == GpuReads::Texel) << 11
 }
 
 /// A render's image size and sample lattice (`Gpu::lattice`): pixels w×h,
@@ -1007,8 +1077,16 @@ impl Gpu {
                 mib(range)
             );
         }
+        let max_texels = self.ctx.info.max_texel_buffer_elements;
+        let reads = opts.reads.fitting(packed, cell_layout, max_texels);
+        if reads != opts.reads {
+            log::debug!(
+                "the scene's arrays read as storage buffers: one has more than {max_texels} texels"
+            );
+        }
         GpuOptions {
             cell_layout,
+            reads,
             lane_pixels: lane_pixels_for(opts.lane_pixels, self.info().kind),
             ..opts.clone()
         }
@@ -1059,9 +1137,14 @@ impl Gpu {
             b("lb_start", bytemuck::cast_slice(&p.lb_start))?,
             b("lb_refs", bytemuck::cast_slice(&p.lb_refs))?,
         ];
-        Ok(SceneBuffers {
-            bufs: SCENE_BINDINGS.into_iter().zip(bufs).collect(),
-        })
+        let mut bufs: Vec<(u32, Buffer)> = SCENE_BINDINGS.into_iter().zip(bufs).collect();
+        let max_texels = self.ctx.info.max_texel_buffer_elements;
+        for (i, b) in &mut bufs {
+            if let Some((_, format)) = texel_binding(*i) {
+                b.add_texel_view(format, max_texels)?;
+            }
+        }
+        Ok(SceneBuffers { bufs })
     }
 
     /// On a device with llvmpipe's loop budget, refuses a render in which
@@ -1207,7 +1290,7 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &[0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 13],
+            &RENDER_BINDINGS,
             std::mem::size_of::<RenderPush>() as u32,
             &[
                 (0, opts.workgroup[0]),
@@ -1329,7 +1412,7 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &[0, 1, 2, 3, 4, 5, 6, 9, 10, 11, 12, 13],
+            &PROBE_BINDINGS,
             std::mem::size_of::<ProbePush>() as u32,
             &[],
         )?;

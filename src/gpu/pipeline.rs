@@ -10,6 +10,22 @@ use ash::vk;
 use std::path::PathBuf;
 use std::sync::Arc;
 
+/// Bindings from 20 on are uniform texel buffers (`layout.glsl`: the
+/// scene's arrays read as 16-byte texels); the others storage buffers.
+pub const FIRST_TEXEL_BINDING: u32 = 20;
+
+fn is_texel(b: u32) -> bool {
+    b >= FIRST_TEXEL_BINDING
+}
+
+fn descriptor_type(b: u32) -> vk::DescriptorType {
+    if is_texel(b) {
+        vk::DescriptorType::UNIFORM_TEXEL_BUFFER
+    } else {
+        vk::DescriptorType::STORAGE_BUFFER
+    }
+}
+
 /// One compute pipeline with its layout and a single descriptor set.
 pub struct Kernel {
     ctx: Arc<Context>,
@@ -45,7 +61,7 @@ impl Kernel {
             .map(|&b| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(b)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_type(descriptor_type(b))
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
@@ -71,9 +87,15 @@ impl Kernel {
                     None,
                 )
                 .vk("vkCreateDescriptorSetLayout")?;
-            let sizes = [vk::DescriptorPoolSize::default()
-                .ty(vk::DescriptorType::STORAGE_BUFFER)
-                .descriptor_count(bindings.len() as u32)];
+            let texels = bindings.iter().filter(|&&b| is_texel(b)).count() as u32;
+            let sizes = [
+                vk::DescriptorPoolSize::default()
+                    .ty(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_count((bindings.len() as u32 - texels).max(1)),
+                vk::DescriptorPoolSize::default()
+                    .ty(vk::DescriptorType::UNIFORM_TEXEL_BUFFER)
+                    .descriptor_count(texels.max(1)),
+            ];
             k.pool = d
                 .create_descriptor_pool(
                     &vk::DescriptorPoolCreateInfo::default()
@@ -167,15 +189,28 @@ impl Kernel {
                     .range(vk::WHOLE_SIZE)]
             })
             .collect();
+        for (b, buf) in buffers {
+            if is_texel(*b) && buf.view == vk::BufferView::null() {
+                return Err(GpuError::Internal(format!(
+                    "binding {b} needs a texel view"
+                )));
+            }
+        }
+        let views: Vec<[vk::BufferView; 1]> = buffers.iter().map(|(_, buf)| [buf.view]).collect();
         let writes: Vec<_> = buffers
             .iter()
             .zip(&infos)
-            .map(|((b, _), info)| {
-                vk::WriteDescriptorSet::default()
+            .zip(&views)
+            .map(|(((b, _), info), view)| {
+                let w = vk::WriteDescriptorSet::default()
                     .dst_set(self.set)
                     .dst_binding(*b)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .buffer_info(info)
+                    .descriptor_type(descriptor_type(*b));
+                if is_texel(*b) {
+                    w.texel_buffer_view(view)
+                } else {
+                    w.buffer_info(info)
+                }
             })
             .collect();
         // SAFETY: the set is not in use by pending work (every submission is
@@ -356,6 +391,7 @@ mod tests {
             vendor_id: 0x10005,
             device_id: 7,
             max_storage_buffer_range: 0,
+            max_texel_buffer_elements: 0,
             max_compute_work_group_invocations: 0,
             max_compute_work_group_size: [0; 3],
             max_compute_work_group_count: [0; 3],

@@ -18,7 +18,7 @@ use super::memory::Buffer;
 use super::pipeline::Kernel;
 use super::{
     layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions, Phases,
-    SCENE_BINDINGS,
+    SCENE_BINDINGS, TEXEL_BINDINGS,
 };
 use crate::cpu::Frame;
 use crate::pack::Packed;
@@ -78,6 +78,7 @@ fn stage_kind(stage: usize) -> usize {
 fn bindings() -> Vec<u32> {
     let mut b = SCENE_BINDINGS.to_vec();
     b.extend([7, 8, 9, 10, 14, 15, 16]);
+    b.extend(TEXEL_BINDINGS);
     b
 }
 
