@@ -43,6 +43,7 @@ const uint PROBE_SAMPLE = 5u;
 const uint PROBE_SOLVE = 6u;
 
 void main() {
+    load_globals();
     uint idx = gl_GlobalInvocationID.x;
     shadow_cache_reset();
     if (idx >= probe.y) {

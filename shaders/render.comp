@@ -189,6 +189,7 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
 #endif
 
 void main() {
+    load_globals();
     // Workgroup k of the dispatch renders group (k · stride) mod n of the
     // tile: a permutation, since the stride is coprime to n.
     uvec2 ng = gl_NumWorkGroups.xy;

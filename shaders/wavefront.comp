@@ -145,6 +145,7 @@ void store_ray(uint at, Entry e) {
 
 #if WF_STAGE == 0
 void main() {
+    load_globals();
     uint i = wf_index();
     if (i < range.x) {
         bool corners = g.image.w == SAMPLING_CORNERS;
@@ -165,6 +166,7 @@ void main() {
 
 #if WF_STAGE == 1
 void main() {
+    load_globals();
     uint i = wf_index();
     if (i < range.x) {
         Entry e = load_ray(range.y + i);
@@ -181,6 +183,7 @@ void main() {
 
 #if WF_STAGE == 2
 void main() {
+    load_globals();
     uint i = wf_index();
     bool live = i < range.x;
     Entry e;
@@ -267,6 +270,7 @@ void main() {
 
 #if WF_STAGE == 3
 void main() {
+    load_globals();
     shadow_cache_reset();
     uint i = wf_index();
     if (i < range.x) {
@@ -281,6 +285,7 @@ void main() {
 
 #if WF_STAGE == 4
 void main() {
+    load_globals();
     uint i = wf_index();
     if (i < range.x) {
         uint at = range.z + i;
@@ -337,6 +342,7 @@ vec3 tree_sum(uint root) {
 }
 
 void main() {
+    load_globals();
     uint i = wf_index();
     if (i < range.x) {
         bool corners = g.image.w == SAMPLING_CORNERS;
