@@ -29,9 +29,9 @@ pub struct Buffer {
     pub(crate) buffer: vk::Buffer,
     allocation: Option<Allocation>,
     pub size: u64,
-    /// A view of the whole buffer as 16-byte texels (R32G32B32A32_UINT),
-    /// for the shaders' texel-buffer bindings (`TEXEL_BINDINGS`); null
-    /// until `add_texel_view`.
+    /// A view of the buffer as texels (R32G32B32A32_UINT or R32_UINT), for
+    /// the shaders' texel-buffer bindings (`TEXEL_BINDINGS` in mod.rs);
+    /// null until `add_texel_view`.
     pub(crate) view: vk::BufferView,
 }
 

@@ -1,5 +1,6 @@
 //! Compute kernels: shader module, specialization constants, descriptor set
-//! layout, pool and set (all storage buffers, set 0), push constants, and
+//! layout, pool and set (set 0: storage buffers, uniform texel buffers from
+//! binding 20 on), push constants, and
 //! the pipeline cache persisted in a folder (`GpuOptions::pipeline_cache`;
 //! by default under the user's cache directory).
 
@@ -10,8 +11,8 @@ use ash::vk;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// Bindings from 20 on are uniform texel buffers (`layout.glsl`: the
-/// scene's arrays read as 16-byte texels); the others storage buffers.
+/// Bindings from 20 on are uniform texel buffers (`layout.glsl`: scene
+/// arrays read as texels, `TEXELS`); the others storage buffers.
 pub const FIRST_TEXEL_BINDING: u32 = 20;
 
 fn is_texel(b: u32) -> bool {
