@@ -118,7 +118,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             uint i = nested ? ref_at(link) : link;
             Prim prim = load_prim(i);
             if (!(nested && listed_at(prim, prev_axis, prev_coord)) &&
-                query_prim(q, prim, i, ray, pre)) {
+                query_prim_kinds(q, prim, i, ray, pre, BOUNDED_KINDS)) {
                 ended = true;
                 break;
             }

@@ -292,7 +292,7 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
             if (seen_before(prim, dda)) {
                 continue;
             }
-            if (query_prim(q, prim, r, ray, pre)) {
+            if (query_prim_kinds(q, prim, r, ray, pre, BOUNDED_KINDS)) {
                 break;
             }
         }

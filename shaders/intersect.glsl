@@ -472,40 +472,42 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
 }
 
 // Any primitive: the dispatch on kind.
-bool intersect(Prim prim, Ray ray, RayPre pre, float tmax, out Hit h) {
+// intersect, compiled for the kinds in `kinds` only (a constant where
+// the walks call it: BOUNDED_KINDS); false for a primitive of another kind.
+bool intersect_kinds(Prim prim, Ray ray, RayPre pre, float tmax, out Hit h, uint kinds) {
     switch (prim_kind(prim)) {
     case KIND_SPHERE:
-        if (HAS_SPHERE) {
+        if (HAS_SPHERE && (kinds & FEAT_SPHERE) != 0u) {
             return sphere(prim.a.xyz, prim.b.x, ray, tmax, h);
         }
         break;
     case KIND_PLANE:
-        if (HAS_PLANE) {
+        if (HAS_PLANE && (kinds & FEAT_PLANE) != 0u) {
             return plane(prim.a.xyz, prim.a.w, ray, tmax, h);
         }
         break;
     case KIND_TRIANGLE:
-        if (HAS_TRIANGLE) {
+        if (HAS_TRIANGLE && (kinds & FEAT_TRIANGLE) != 0u) {
             return triangle(prim.a.xyz, prim.b.xyz, prim.c.xyz, ray, pre, tmax, h);
         }
         break;
     case KIND_POLYGON:
-        if (HAS_POLYGON) {
+        if (HAS_POLYGON && (kinds & FEAT_POLYGON) != 0u) {
             return polygon(prim, ray, tmax, h);
         }
         break;
     case KIND_BOX:
-        if (HAS_BOX) {
+        if (HAS_BOX && (kinds & FEAT_BOX) != 0u) {
             return aabox(prim.a.xyz, prim.b.xyz, ray, pre, tmax, h);
         }
         break;
     case KIND_QUADRIC:
-        if (HAS_QUADRIC) {
+        if (HAS_QUADRIC && (kinds & FEAT_QUADRIC) != 0u) {
             return quadric(prim, ray, tmax, h);
         }
         break;
     case KIND_CONE:
-        if (HAS_CONE) {
+        if (HAS_CONE && (kinds & FEAT_CONE) != 0u) {
             return cone(prim, ray, tmax, h);
         }
         break;
@@ -513,6 +515,10 @@ bool intersect(Prim prim, Ray ray, RayPre pre, float tmax, out Hit h) {
         break;
     }
     return false;
+}
+
+bool intersect(Prim prim, Ray ray, RayPre pre, float tmax, out Hit h) {
+    return intersect_kinds(prim, ray, pre, tmax, h, 0xFFFFFFFFu);
 }
 
 // Outward geometric normal ng (unit) and shading normal ns (unit) at p.

@@ -140,6 +140,15 @@ const bool PRIMS_SOA = (STRUCTURE & 0x80000200u) == 512u;
 // from refs for a single reference. Grid and hybrid only.
 const bool CELLS_PAIRS = (STRUCTURE & 0x80000400u) == 1024u;
 
+// Bits 12-18: the kinds (FEAT_SPHERE … FEAT_CONE, bit k for KIND k) of
+// the primitives the structure holds (the first g.counts.x; the others
+// are tested against every ray by query_unbounded). The walks test
+// their primitives with only these kinds' code: llvmpipe runs every
+// kind's test, masked, on each test whatever the kind, so a floor
+// polygon among spheres made every sphere test run the polygon's too
+// (docs/profiling.md). All kinds under STRUCTURE_ANY.
+const uint BOUNDED_KINDS = (STRUCTURE >> 12) & 127u;
+
 // Bit 11: the primitives, the BVH and the grid's (or octree's) cell and
 // reference lists are read through bindings 20 to 23: the buffers of
 // bindings 1, 11, 5 and 6 seen as uniform texel buffers (16-byte texels,

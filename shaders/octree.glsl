@@ -82,7 +82,7 @@ void octree_leaf_query(inout Query q, Ray ray, RayPre pre, uint node, float lo, 
                 continue;
             }
         }
-        if (query_prim(q, load_prim(r), r, ray, pre)) {
+        if (query_prim_kinds(q, load_prim(r), r, ray, pre, BOUNDED_KINDS)) {
             break;
         }
     }

@@ -117,10 +117,11 @@ float next_up(float t) {
 // opaque blocker for a feeler: nothing further can change the answer).
 // Of two primitives hit at the same distance, the closest hit is the one
 // of lower rank, whatever order the structure walks them in.
-bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
+// `kinds`: the kinds prim can be (BOUNDED_KINDS in the walks).
+bool query_prim_kinds(inout Query q, Prim prim, uint i, Ray ray, RayPre pre, uint kinds) {
     work_tests += 1u;
     Hit h;
-    if (intersect(prim, ray, pre, q.bound, h)) {
+    if (intersect_kinds(prim, ray, pre, q.bound, h, kinds)) {
         if (q.shadow) {
             vec3 kt = materials[prim_material(prim)].kt.xyz;
             if (max_elem(kt) > 0.0 && !(h.t >= q.lo && h.t < q.hi)) {
@@ -148,6 +149,10 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
         }
     }
     return q.done;
+}
+
+bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
+    return query_prim_kinds(q, prim, i, ray, pre, 0xFFFFFFFFu);
 }
 
 // Runs query q over the unbounded primitives (planes, unclipped quadrics,

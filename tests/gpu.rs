@@ -737,6 +737,62 @@ fn texel_and_storage_reads_give_one_image() {
     common::assert_no_validation_errors();
 }
 
+/// The walks compile only the intersection tests of the kinds the
+/// structure holds (`BOUNDED_KINDS`, bits 12-18 of specialization constant
+/// 3): for random spheres on a floor polygon the spheres alone, the floor
+/// being a giant tested by `query_unbounded` with every kind's code. (The
+/// images with it are the CPU mirror's: every other test here.)
+#[test]
+fn walks_compile_the_kinds_their_structure_holds() {
+    use whitted::constants::{KIND_POLYGON, KIND_SPHERE};
+    use whitted::gpu::{bounded_kinds, layout_key};
+    for accel in [Accel::Grid, Accel::Bvh] {
+        let p = whitted::pack::pack(
+            &whitted::gen::random_spheres(500, 3),
+            &Settings {
+                accel,
+                ..common::small(8, 8)
+            },
+        )
+        .unwrap();
+        let n = p.globals.counts[0] as usize;
+        let kind = |prim: &Prim| prim.kind_mat & 15;
+        assert!(
+            p.prims[n..].iter().any(|q| kind(q) == KIND_POLYGON),
+            "{accel:?}: a giant floor"
+        );
+        assert_eq!(bounded_kinds(&p), 1 << KIND_SPHERE, "{accel:?}");
+        let key = layout_key(&GpuOptions::default(), &p);
+        assert_eq!(key >> 12 & 127, 1 << KIND_SPHERE, "{accel:?}");
+    }
+    // Every scene file and SPD rings (cylinders and spheres): the kinds of
+    // their first counts[0] primitives; some structure holds two kinds.
+    let rings = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Rings, Some(1)).unwrap();
+    let mut cases: Vec<(String, Packed)> = scene_files()
+        .into_iter()
+        .map(|f| {
+            (
+                f.display().to_string(),
+                common::load(&f, &common::small(8, 8)),
+            )
+        })
+        .collect();
+    cases.push((
+        "rings".into(),
+        whitted::pack::pack(&rings, &common::small(8, 8)).unwrap(),
+    ));
+    let mut mixed = 0;
+    for (name, p) in &cases {
+        let n = p.globals.counts[0] as usize;
+        let want: u32 = p.prims[..n]
+            .iter()
+            .fold(0, |k, q| k | 1 << (q.kind_mat & 15));
+        assert_eq!(bounded_kinds(p), want, "{name}");
+        mixed += usize::from(want.count_ones() > 1);
+    }
+    assert!(mixed > 0, "no scene file mixes kinds in its structure");
+}
+
 /// `--cell-layout pairs` (the grid's cells as (start, count) pairs, one
 /// reference inline, the skip in the pair): the same image, counts and
 /// work as the packed offsets on every scene file under the grid, on

@@ -824,9 +824,9 @@ pub fn structure_key(flags: [u32; 4]) -> u32 {
     accel | walk << 4 | light_buffers << 8
 }
 
-/// Bits 9 and 10 of specialization constant 3 (`PRIMS_SOA` and
-/// `CELLS_PAIRS` in shaders/layout.glsl): the primitives' layout and the
-/// grid cells' for `p`.
+/// Bits 9 to 18 of specialization constant 3 (shaders/layout.glsl):
+/// `PRIMS_SOA` and `CELLS_PAIRS` (the primitives' layout and the grid
+/// cells' for `p`), `TEXELS` (the reads) and `BOUNDED_KINDS`.
 pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     let prims = match opts.prim_layout {
         PrimLayout::Aos => 0,
@@ -835,6 +835,19 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     prims
         | u32::from(opts.cell_layout.applies(p)) << 10
         | u32::from(opts.reads == GpuReads::Texel) << 11
+        | bounded_kinds(p) << 12
+}
+
+/// Bits 12-18 of specialization constant 3 (`BOUNDED_KINDS` in
+/// shaders/layout.glsl): the kinds of the primitives the structure holds
+/// (the first `counts[0]`), bit k for `KIND` k, so that the walks compile
+/// only those kinds' intersection tests.
+pub fn bounded_kinds(p: &crate::pack::Packed) -> u32 {
+    let n = (p.globals.counts[0] as usize).min(p.prims.len());
+    p.prims[..n]
+        .iter()
+        .fold(0, |k, prim| k | 1 << (prim.kind_mat & 15).min(31))
+        & 127
 }
 
 /// A render's image size and sample lattice (`Gpu::lattice`): pixels w×h,
