@@ -773,13 +773,18 @@ fn texel_binding(b: u32) -> Option<(u32, vk::Format)> {
     })
 }
 
-/// The texel-buffer bindings (`texel_binding`).
-const TEXEL_BINDINGS: [u32; 4] = [20, 21, 22, 23];
-
-/// render.comp's bindings: the scene's, the samples (7), the counters (8).
-const RENDER_BINDINGS: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 13, 20, 21, 22, 23];
-/// probe.comp's: the scene's, the items (9), the results (10).
-const PROBE_BINDINGS: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 9, 10, 11, 12, 13, 20, 21, 22, 23];
+/// A kernel's bindings: the scene's, their texel views
+/// (`texel_binding`), then the kernel's own `own`.
+fn kernel_bindings(own: &[u32]) -> Vec<u32> {
+    let texels = SCENE_BINDINGS
+        .into_iter()
+        .filter_map(|b| texel_binding(b).map(|(t, _)| t));
+    SCENE_BINDINGS
+        .into_iter()
+        .chain(texels)
+        .chain(own.iter().copied())
+        .collect()
+}
 
 /// The scene's bindings (`layout.glsl`); 7 to 10 are the kernels' own.
 const SCENE_BINDINGS: [u32; 10] = [0, 1, 2, 3, 4, 5, 6, 11, 12, 13];
@@ -1303,7 +1308,8 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &RENDER_BINDINGS,
+            // The samples (7), the counters (8).
+            &kernel_bindings(&[7, 8]),
             std::mem::size_of::<RenderPush>() as u32,
             &[
                 (0, opts.workgroup[0]),
@@ -1425,7 +1431,8 @@ impl Gpu {
         let kernel = self.kernel(
             name,
             spirv,
-            &PROBE_BINDINGS,
+            // The items (9), the results (10).
+            &kernel_bindings(&[9, 10]),
             std::mem::size_of::<ProbePush>() as u32,
             &[],
         )?;

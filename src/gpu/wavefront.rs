@@ -17,8 +17,8 @@ use super::dispatch::{self, Commands, Stage, Work};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
 use super::{
-    layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions, Phases,
-    SCENE_BINDINGS, TEXEL_BINDINGS,
+    kernel_bindings, layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions,
+    Phases,
 };
 use crate::cpu::Frame;
 use crate::pack::Packed;
@@ -76,10 +76,7 @@ fn stage_kind(stage: usize) -> usize {
 /// The kernels' bindings: the scene's, the output (7), the counters (8),
 /// rays (9), nodes (10), hits (14), feelers (15), the queue lengths (16).
 fn bindings() -> Vec<u32> {
-    let mut b = SCENE_BINDINGS.to_vec();
-    b.extend([7, 8, 9, 10, 14, 15, 16]);
-    b.extend(TEXEL_BINDINGS);
-    b
+    kernel_bindings(&[7, 8, 9, 10, 14, 15, 16])
 }
 
 /// The queues and their capacities (in rays, nodes, feelers). `rays`
