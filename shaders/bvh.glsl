@@ -10,9 +10,8 @@
 // than that was found meanwhile. A leaf hands its primitives to
 // query_prim. The stack has BVH_STACK_SIZE entries, which the build keeps
 // enough (src/pack/bvh.rs, collapse). No loop runs inside a node visit
-// (the ordering is a sorting network, the pushes straight-line code) and
-// a leaf's primitives are steps of the walk's one loop (below):
-// llvmpipe counts every loop iteration against one budget (grid.glsl).
+// (the ordering is a sorting network, the pushes straight-line code):
+// llvmpipe counts every loop iteration against one budget (query.glsl).
 #ifndef WHITTED_BVH_GLSL
 #define WHITTED_BVH_GLSL
 
@@ -92,29 +91,106 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
     uint link = root;
     uint count = 0u;
     float t = 0.0;
-    // One loop, one step per iteration: a node visit or one primitive of
-    // the current leaf (the CPU's walk tests a leaf's primitives in an
-    // inner loop; the order of tests, and so every result and counter,
-    // is the same). llvmpipe runs its 8 lanes in lock-step and both sides
-    // of every branch: an inner loop made each node visit wait for the
-    // longest leaf of the 8 and each leaf for a node visit's code; one step
-    // per iteration lets a lane test a primitive while another visits a
-    // node (SPD rings 12 %, gears 5 % less device time; docs/profiling.md).
-    // Each child becomes the current one at most once and each primitive
-    // lies in one leaf, so a walk takes at most BVH_WIDTH·nodes + 1 + the
-    // bounded primitives' count steps (the bound keeps a NaN ray finite).
+    // Two phases a round, each its own loop (the "while-while" of Aila
+    // & Laine, 2009): node visits until the current child is a leaf to
+    // test, then that leaf's primitives. llvmpipe runs its 8 lanes in
+    // lock-step and both sides of every branch, masked: with one loop
+    // whose step was a node visit or one primitive, every step ran both
+    // the node's code and the primitive test's (for gears, a polygon's).
+    // Now a node visit runs no primitive test and a test no node visit;
+    // lanes wait at each phase's end for the others instead (SPD gears
+    // 10 %, rings and balls 3 % less device time; docs/profiling.md).
+    // The order of tests is the CPU's (which tests a leaf in an inner
+    // loop), so every result and counter is the same. A node visit and a
+    // primitive each count one step: each child becomes the current one
+    // at most once and each primitive lies in one leaf, so a walk takes at
+    // most BVH_WIDTH·nodes + 1 + the bounded primitives' count steps (the
+    // bound keeps a NaN ray finite).
     uint max_steps = BVH_WIDTH * nodes + 1u + g.counts.x;
     bool ended = false;
-    // The current child is a leaf whose primitives are being tested
-    // (prims[link], count of them left); it was entered (t <= q.t then),
-    // so it is finished even if a hit nearer than t is found meanwhile.
-    bool in_leaf = false;
-    for (uint step = 0u; step < max_steps; step++) {
-        if (!in_leaf && count > 0u && t <= q.t) {
-            in_leaf = true;
+    uint step = 0u;
+    while (step < max_steps) {
+        // Phase 1: node visits and pops until the current child is a leaf
+        // to test (found) or the walk is over.
+        bool found = false;
+        for (; step < max_steps; step++) {
+            if (count > 0u && t <= q.t) {
+                found = true;
+                break;
+            }
+            bool next = true;
+            if (count == 0u && t <= q.t) {
+                work_nodes += 1u;
+                BvhNode n = bvh_node(link);
+                vec4 te;
+                bvec4 hit = bvh_entries(n, ray, pre, q.t, te);
+                // Lanes entered (not empty ones) keep their distance and
+                // key = lane; the others sort last (+∞, lane + 4).
+                bvec4 real = notEqual(n.count | n.link, uvec4(0u));
+                bvec4 enter = bvec4(uvec4(hit) & uvec4(real));
+                uint m = uint(enter.x) + uint(enter.y) + uint(enter.z) + uint(enter.w);
+                if (m > 0u) {
+                    // A feeler takes them in lane order (all at distance
+                    // 0: its segment never shrinks, so the order cannot
+                    // save a test, and sorting by distance would cost).
+                    float inf = uintBitsToFloat(0x7f800000u);
+                    vec4 d = q.shadow ? vec4(0.0) : te;
+                    float s0 = enter.x ? d.x : inf;
+                    float s1 = enter.y ? d.y : inf;
+                    float s2 = enter.z ? d.z : inf;
+                    float s3 = enter.w ? d.w : inf;
+                    uint k0 = enter.x ? 0u : 4u;
+                    uint k1 = enter.y ? 1u : 5u;
+                    uint k2 = enter.z ? 2u : 6u;
+                    uint k3 = enter.w ? 3u : 7u;
+                    bvh_order2(s0, k0, s1, k1);
+                    bvh_order2(s2, k2, s3, k3);
+                    bvh_order2(s0, k0, s2, k2);
+                    bvh_order2(s1, k1, s3, k3);
+                    bvh_order2(s1, k1, s2, k2);
+                    uint base = link * BVH_WIDTH;
+                    if (m > 3u) {
+                        stack_slot[sp] = base + k3;
+                        stack_t[sp] = s3;
+                        sp += 1u;
+                    }
+                    if (m > 2u) {
+                        stack_slot[sp] = base + k2;
+                        stack_t[sp] = s2;
+                        sp += 1u;
+                    }
+                    if (m > 1u) {
+                        stack_slot[sp] = base + k1;
+                        stack_t[sp] = s1;
+                        sp += 1u;
+                    }
+                    link = n.link[k0];
+                    count = n.count[k0];
+                    t = s0;
+                    next = false;
+                }
+            }
+            // The node entered no child, or the current child is a leaf
+            // beyond q.t: the next pushed child.
+            if (next) {
+                if (sp == 0u) {
+                    ended = true;
+                    break;
+                }
+                sp -= 1u;
+                uint slot = stack_slot[sp];
+                link = bvh_links(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+                count = bvh_counts(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+                t = stack_t[sp];
+            }
         }
-        bool next = true;
-        if (in_leaf) {
+        if (!found) {
+            break;
+        }
+        // Phase 2: the leaf's primitives. It was entered (t <= q.t then),
+        // so it is finished even if a hit nearer than t is found
+        // meanwhile.
+        for (; count > 0u && step < max_steps; step++) {
             uint i = nested ? ref_at(link) : link;
             Prim prim = load_prim(i);
             if (!(nested && listed_at(prim, prev_axis, prev_coord)) &&
@@ -124,72 +200,21 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             }
             link += 1u;
             count -= 1u;
-            in_leaf = count > 0u;
-            next = !in_leaf;
-        } else if (count == 0u && t <= q.t) {
-            work_nodes += 1u;
-            BvhNode n = bvh_node(link);
-            vec4 te;
-            bvec4 hit = bvh_entries(n, ray, pre, q.t, te);
-            // Lanes entered (not empty ones) keep their distance and
-            // key = lane; the others sort last (+∞, lane + 4).
-            bvec4 real = notEqual(n.count | n.link, uvec4(0u));
-            bvec4 enter = bvec4(uvec4(hit) & uvec4(real));
-            uint m = uint(enter.x) + uint(enter.y) + uint(enter.z) + uint(enter.w);
-            if (m > 0u) {
-                // A feeler takes them in lane order (all at distance
-                // 0: its segment never shrinks, so the order cannot
-                // save a test, and sorting by distance would cost).
-                float inf = uintBitsToFloat(0x7f800000u);
-                vec4 d = q.shadow ? vec4(0.0) : te;
-                float s0 = enter.x ? d.x : inf;
-                float s1 = enter.y ? d.y : inf;
-                float s2 = enter.z ? d.z : inf;
-                float s3 = enter.w ? d.w : inf;
-                uint k0 = enter.x ? 0u : 4u;
-                uint k1 = enter.y ? 1u : 5u;
-                uint k2 = enter.z ? 2u : 6u;
-                uint k3 = enter.w ? 3u : 7u;
-                bvh_order2(s0, k0, s1, k1);
-                bvh_order2(s2, k2, s3, k3);
-                bvh_order2(s0, k0, s2, k2);
-                bvh_order2(s1, k1, s3, k3);
-                bvh_order2(s1, k1, s2, k2);
-                uint base = link * BVH_WIDTH;
-                if (m > 3u) {
-                    stack_slot[sp] = base + k3;
-                    stack_t[sp] = s3;
-                    sp += 1u;
-                }
-                if (m > 2u) {
-                    stack_slot[sp] = base + k2;
-                    stack_t[sp] = s2;
-                    sp += 1u;
-                }
-                if (m > 1u) {
-                    stack_slot[sp] = base + k1;
-                    stack_t[sp] = s1;
-                    sp += 1u;
-                }
-                link = n.link[k0];
-                count = n.count[k0];
-                t = s0;
-                next = false;
-            }
         }
-        // The leaf is finished, the node entered no child, or the current
-        // child lies beyond q.t: the next pushed child.
-        if (next) {
-            if (sp == 0u) {
-                ended = true;
-                break;
-            }
-            sp -= 1u;
-            uint slot = stack_slot[sp];
-            link = bvh_links(slot / BVH_WIDTH)[slot % BVH_WIDTH];
-            count = bvh_counts(slot / BVH_WIDTH)[slot % BVH_WIDTH];
-            t = stack_t[sp];
+        // Done, or out of steps (count > 0: the bound, never reached by a
+        // finite ray), or on to the next pushed child.
+        if (ended || count > 0u) {
+            break;
         }
+        if (sp == 0u) {
+            ended = true;
+            break;
+        }
+        sp -= 1u;
+        uint slot = stack_slot[sp];
+        link = bvh_links(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+        count = bvh_counts(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+        t = stack_t[sp];
     }
     if (!ended) {
         loops_cut += 1u;
