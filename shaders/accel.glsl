@@ -50,8 +50,8 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
 // to test. A feeler whose origin is the light's position walks the
 // structure instead.
 vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
-    uint cached = light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
-    if (cached != 0u) {
+    uint cached = SHADOW_CACHE && light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
+    if (SHADOW_CACHE && cached != 0u) {
         work_tests += 1u;
         Hit hc;
         if (intersect(load_prim(cached - 1u), ray, pre, dist, hc)) {

@@ -149,6 +149,14 @@ const bool CELLS_PAIRS = (STRUCTURE & 0x80000400u) == 1024u;
 // (docs/profiling.md). All kinds under STRUCTURE_ANY.
 const uint BOUNDED_KINDS = (STRUCTURE >> 12) & 127u;
 
+// Bit 19: no shadow cache (src/gpu/mod.rs, GpuShadowCache: the default
+// on a CPU device). Feelers then walk the structure without testing the
+// last blocker first: the same light, other work counters. On llvmpipe
+// the cached primitive's test runs, masked, for all 8 lanes before every
+// feeler, and the walk runs unless all 8 were answered: 2-7 % more device
+// time with the cache (docs/profiling.md). Kept under STRUCTURE_ANY.
+const bool SHADOW_CACHE = (STRUCTURE & 0x80080000u) != 0x00080000u;
+
 // Bit 11: the primitives, the BVH and the grid's (or octree's) cell and
 // reference lists are read through bindings 20 to 23: the buffers of
 // bindings 1, 11, 5 and 6 seen as uniform texel buffers (16-byte texels,

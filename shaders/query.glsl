@@ -129,7 +129,7 @@ bool query_prim_kinds(inout Query q, Prim prim, uint i, Ray ray, RayPre pre, uin
             }
             PRECISE vec3 trans = q.trans * kt;
             q.trans = trans;
-            if (max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
+            if (SHADOW_CACHE && max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
                 shadow_cache[shadow_slot(q.light)] = i + 1u;
             }
             if (max_elem(q.trans) <= 0.0) {

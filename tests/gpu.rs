@@ -16,7 +16,8 @@ use std::time::Duration;
 use whitted::cpu::{self, Frame};
 use whitted::gpu::loops::{self, Driver, LoopLoad};
 use whitted::gpu::{
-    DeviceKind, Fault, Gpu, GpuError, GpuMath, GpuOptions, PipelineCache, ProbeItem, ProbeResult,
+    DeviceKind, Fault, Gpu, GpuError, GpuMath, GpuOptions, GpuShadowCache, PipelineCache,
+    ProbeItem, ProbeResult,
 };
 use whitted::metrics::{self, Tolerance};
 use whitted::pack::layout::{BvhNode, Globals, Light, Material, Prim};
@@ -791,6 +792,71 @@ fn walks_compile_the_kinds_their_structure_holds() {
         mixed += usize::from(want.count_ones() > 1);
     }
     assert!(mixed > 0, "no scene file mixes kinds in its structure");
+}
+
+/// `--shadow-cache`: `auto` is off on a CPU device and on elsewhere,
+/// off sets bit 19 of specialization constant 3 (`SHADOW_CACHE` in
+/// layout.glsl), and the cache changes no pixel and no ray count, on
+/// either kernel, against the CPU mirror bit for bit on lavapipe; it
+/// changes the work counters (proof that the bit reaches the shader)
+/// where opaque blockers shadow feelers.
+#[test]
+fn the_shadow_cache_changes_no_pixel_on_the_gpu() {
+    use whitted::gpu::{layout_key, GpuKernel};
+    assert_eq!(
+        GpuShadowCache::Auto.for_device(DeviceKind::Cpu),
+        GpuShadowCache::Off
+    );
+    for kind in [
+        DeviceKind::Discrete,
+        DeviceKind::Integrated,
+        DeviceKind::Virtual,
+        DeviceKind::Other,
+    ] {
+        assert_eq!(GpuShadowCache::Auto.for_device(kind), GpuShadowCache::On);
+        assert_eq!(GpuShadowCache::Off.for_device(kind), GpuShadowCache::Off);
+    }
+    assert_eq!(
+        GpuShadowCache::On.for_device(DeviceKind::Cpu),
+        GpuShadowCache::On
+    );
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    let with = |shadow_cache, kernel| GpuOptions {
+        shadow_cache,
+        kernel,
+        ..Default::default()
+    };
+    let mut changed = 0;
+    for f in scene_files() {
+        for accel in [Accel::Grid, Accel::Bvh] {
+            let p = common::load(
+                &f,
+                &Settings {
+                    accel,
+                    ..common::small(48, 36)
+                },
+            );
+            let key = |c| layout_key(&with(c, GpuKernel::Mega), &p) >> 19 & 1;
+            assert_eq!((key(GpuShadowCache::On), key(GpuShadowCache::Off)), (0, 1));
+            let name = format!("{} {accel:?}", f.display());
+            let cpu = cpu::render(&p, &|_, _| {});
+            for kernel in [GpuKernel::Mega, GpuKernel::Wavefront] {
+                let [on, off] = [GpuShadowCache::On, GpuShadowCache::Off].map(|c| {
+                    g.render(&p, &with(c, kernel), &|_, _| {})
+                        .unwrap_or_else(|e| panic!("{name} {kernel:?}: {e}"))
+                });
+                assert!(bits(&on) == bits(&off), "{name} {kernel:?}: the image");
+                assert_eq!(on.stats, off.stats, "{name} {kernel:?}");
+                if exact {
+                    assert!(bits(&off) == bits(&cpu), "{name} {kernel:?}: the mirror");
+                }
+                changed += usize::from(on.work != off.work);
+            }
+        }
+    }
+    assert!(changed > 0, "the cache changed no work counter anywhere");
+    common::assert_no_validation_errors();
 }
 
 /// `--cell-layout pairs` (the grid's cells as (start, count) pairs, one
@@ -2043,7 +2109,8 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape_and_kernel() {
 
 /// The GPU's work counters (`Frame::work`, 64-bit through a carry word)
 /// mean what the CPU's mean: counted at the same places of the twins.
-/// They differ only through the shadow cache's lifetime (one invocation
+/// With the shadow cache on (`--shadow-cache on`; the CPU mirror always
+/// keeps it) they differ only through its lifetime (one invocation
 /// on the GPU, a 16×16 tile on the CPU; docs/gpu.md), so: within 5 % on
 /// every bundled scene with each structure (or 16 where there are only a
 /// handful), and equal on a CPU device
@@ -2052,6 +2119,10 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape_and_kernel() {
 fn gpu_work_counters_match_the_cpu() {
     let Some(g) = common::gpu() else { return };
     let exact = g.info().kind == DeviceKind::Cpu;
+    let cached = GpuOptions {
+        shadow_cache: GpuShadowCache::On,
+        ..Default::default()
+    };
     // 5 %, or 16 where a scene walks only a handful of cells.
     let close = |a: u64, b: u64| (a as f64 - b as f64).abs() <= (0.05 * a.max(b) as f64).max(16.0);
     for path in scene_files() {
@@ -2063,7 +2134,7 @@ fn gpu_work_counters_match_the_cpu() {
                     ..common::small(64, 48)
                 },
             );
-            let Some((c, gf)) = render_both(&p, &GpuOptions::default()) else {
+            let Some((c, gf)) = render_both(&p, &cached) else {
                 return;
             };
             let name = format!("{} {accel:?}", path.display());
@@ -2112,7 +2183,7 @@ fn gpu_work_counters_match_the_cpu() {
                 ..common::small(64, 48)
             },
         );
-        let Some((c, gf)) = render_both(&p, &GpuOptions::default()) else {
+        let Some((c, gf)) = render_both(&p, &cached) else {
             return;
         };
         if exact {

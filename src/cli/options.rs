@@ -224,6 +224,14 @@ pub struct GpuArgs {
     /// profiling.md, "Texel reads").
     #[arg(long, value_enum, value_name = "READS", default_value_t = gpu::GpuReads::Texel)]
     pub reads: gpu::GpuReads,
+    /// Whether the GPU tests the opaque primitive that last blocked a
+    /// feeler to a light before walking the structure (the shadow cache
+    /// the CPU mirror always keeps): `auto` is off on a CPU Vulkan device
+    /// such as lavapipe, where it costs more than it saves, on elsewhere.
+    /// The same image; only the work counters change (docs/profiling.md,
+    /// "The shadow cache on lavapipe").
+    #[arg(long, value_enum, value_name = "WHEN", default_value_t = gpu::GpuShadowCache::Auto)]
+    pub shadow_cache: gpu::GpuShadowCache,
     /// How the GPU walks the ray tree: `mega`, one invocation per pixel
     /// walking its whole tree (one dispatch per tile), or `wavefront`,
     /// queues of rays processed stage by stage (generate, closest hit,
@@ -264,6 +272,7 @@ impl GpuArgs {
             prim_layout: self.prim_layout,
             cell_layout: self.cell_layout,
             reads: self.reads,
+            shadow_cache: self.shadow_cache,
             kernel: self.kernel.unwrap_or_default(),
             saved_kernel: self.kernel.is_none(),
             lane_pixels: self.lane_pixels.unwrap_or(0),

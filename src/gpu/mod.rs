@@ -482,6 +482,36 @@ impl GpuReads {
     }
 }
 
+/// Whether the kernels keep the shadow cache (`--shadow-cache`;
+/// docs/profiling.md, "The shadow cache on lavapipe"): the opaque
+/// primitive that last blocked a feeler to each light, tested before the
+/// feeler's walk. It never changes a pixel, only the work counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GpuShadowCache {
+    /// Off on a CPU Vulkan device (lavapipe: its 8 lanes run the cached
+    /// primitive's test, masked, before every feeler's walk, and walk on
+    /// unless all 8 were answered: 2-7 % more device time with it), on
+    /// elsewhere.
+    #[default]
+    Auto,
+    /// Test the cached blocker first (as the CPU mirror always does).
+    On,
+    /// No cache: every feeler walks the structure.
+    Off,
+}
+
+impl GpuShadowCache {
+    /// Auto settled for a device of `kind`: On or Off.
+    pub fn for_device(self, kind: DeviceKind) -> GpuShadowCache {
+        match (self, kind) {
+            (GpuShadowCache::Auto, DeviceKind::Cpu) => GpuShadowCache::Off,
+            (GpuShadowCache::Auto, _) => GpuShadowCache::On,
+            (c, _) => c,
+        }
+    }
+}
+
 /// The render kernel's float arithmetic (`--gpu-math`; docs/gpu.md,
 /// "Exact and fast shader arithmetic").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -639,6 +669,9 @@ pub struct GpuOptions {
     pub kernel: GpuKernel,
     /// How the kernels read the scene's arrays.
     pub reads: GpuReads,
+    /// Whether the kernels keep the shadow cache (Auto: by the device's
+    /// class, settled by `Gpu::resolved`).
+    pub shadow_cache: GpuShadowCache,
     /// Lattice points one invocation of the megakernel renders, each
     /// sample started inside one ray loop (`LANE_PIXELS`, render.comp;
     /// 1..=`MAX_LANE_PIXELS`; the wavefront ignores it). 0: by the
@@ -673,6 +706,7 @@ impl Default for GpuOptions {
             lane_pixels: 0,
             kernel: GpuKernel::Mega,
             reads: GpuReads::Texel,
+            shadow_cache: GpuShadowCache::Auto,
         }
     }
 }
@@ -829,9 +863,11 @@ pub fn structure_key(flags: [u32; 4]) -> u32 {
     accel | walk << 4 | light_buffers << 8
 }
 
-/// Bits 9 to 18 of specialization constant 3 (shaders/layout.glsl):
+/// Bits 9 to 19 of specialization constant 3 (shaders/layout.glsl):
 /// `PRIMS_SOA` and `CELLS_PAIRS` (the primitives' layout and the grid
-/// cells' for `p`), `TEXELS` (the reads) and `BOUNDED_KINDS`.
+/// cells' for `p`), `TEXELS` (the reads), `BOUNDED_KINDS` and, bit 19,
+/// no shadow cache (`opts.shadow_cache` Off; Auto counts as On here:
+/// `Gpu::resolved` settles it first).
 pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     let prims = match opts.prim_layout {
         PrimLayout::Aos => 0,
@@ -841,6 +877,7 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
         | u32::from(opts.cell_layout.applies(p)) << 10
         | u32::from(opts.reads == GpuReads::Texel) << 11
         | bounded_kinds(p) << 12
+        | u32::from(opts.shadow_cache == GpuShadowCache::Off) << 19
 }
 
 /// Bits 12-18 of specialization constant 3 (`BOUNDED_KINDS` in
@@ -1102,10 +1139,22 @@ impl Gpu {
                 "the scene's arrays read as storage buffers: one has more than {max_texels} texels"
             );
         }
+        let shadow_cache = opts.shadow_cache.for_device(self.info().kind);
+        if opts.shadow_cache == GpuShadowCache::Auto {
+            log::debug!(
+                "shadow cache {} on this device (--shadow-cache auto)",
+                if shadow_cache == GpuShadowCache::On {
+                    "on"
+                } else {
+                    "off"
+                }
+            );
+        }
         GpuOptions {
             cell_layout,
             reads,
             lane_pixels: lane_pixels_for(opts.lane_pixels, self.info().kind),
+            shadow_cache,
             ..opts.clone()
         }
     }
