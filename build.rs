@@ -39,6 +39,7 @@ fn const_u32(name: &str) -> u32 {
         "SKIP_MAX" => SKIP_MAX,
         "BVH_STACK_SIZE" => BVH_STACK_SIZE,
         "BVH_WIDTH" => BVH_WIDTH,
+        "BVH_COUNT_SHIFT" => BVH_COUNT_SHIFT,
         "ACCEL_OCTREE" => ACCEL_OCTREE,
         "ACCEL_HYBRID" => ACCEL_HYBRID,
         "HYBRID_NODE" => HYBRID_NODE,

@@ -179,8 +179,9 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                 }
                 sp -= 1u;
                 uint slot = stack_slot[sp];
-                link = bvh_links(slot / BVH_WIDTH)[slot % BVH_WIDTH];
-                count = bvh_counts(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+                uint child = bvh_children(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+                link = child & BVH_LINK_MASK;
+                count = child >> BVH_COUNT_SHIFT;
                 t = stack_t[sp];
             }
         }
@@ -212,8 +213,9 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
         }
         sp -= 1u;
         uint slot = stack_slot[sp];
-        link = bvh_links(slot / BVH_WIDTH)[slot % BVH_WIDTH];
-        count = bvh_counts(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+        uint child = bvh_children(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+        link = child & BVH_LINK_MASK;
+        count = child >> BVH_COUNT_SHIFT;
         t = stack_t[sp];
     }
     if (!ended) {

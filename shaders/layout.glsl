@@ -59,15 +59,20 @@ struct Light {
 
 // One node of the 4-wide BVH (src/pack/layout.rs, BvhNode): lane k of
 // each field describes child k. lo[axis], hi[axis]: the children's boxes
-// on that axis. count[k] > 0: a leaf of count[k] primitives from
-// primitive link[k]; count[k] = 0 and link[k] > 0: the node link[k]; both 0:
-// no child (an empty box).
+// on that axis. In the buffer (src/gpu/mod.rs, bvh_for_gpu) link[k] holds
+// child k's link in its low BVH_COUNT_SHIFT bits and its count above, and
+// count is zero: one texel for both (a node visit reads 7 texels, a pop
+// 1). bvh_node returns them apart: count[k] > 0: a leaf of count[k]
+// primitives from primitive link[k]; count[k] = 0 and link[k] > 0: the
+// node link[k]; both 0: no child (an empty box).
 struct BvhNode {
     vec4 lo[3];
     vec4 hi[3];
     uvec4 link;
     uvec4 count;
 };
+
+const uint BVH_LINK_MASK = (1u << BVH_COUNT_SHIFT) - 1u;
 
 layout(set = 0, binding = 0, std430) readonly buffer GlobalsBuf { Globals g_buf; };
 // A private copy of the globals, read from the buffer once per invocation
@@ -212,26 +217,24 @@ BvhNode bvh_node(uint i) {
         n.hi[0] = bvh_word(k + 3);
         n.hi[1] = bvh_word(k + 4);
         n.hi[2] = bvh_word(k + 5);
-        n.link = texelFetch(bvh_texels, k + 6);
-        n.count = texelFetch(bvh_texels, k + 7);
+        uvec4 child = texelFetch(bvh_texels, k + 6);
+        n.link = child & BVH_LINK_MASK;
+        n.count = child >> BVH_COUNT_SHIFT;
         return n;
     }
-    return bvh[i];
+    BvhNode n = bvh[i];
+    n.count = n.link >> BVH_COUNT_SHIFT;
+    n.link = n.link & BVH_LINK_MASK;
+    return n;
 }
 
-// The links and counts of node i's children.
-uvec4 bvh_links(uint i) {
+// Node i's children's links and counts, one word each (bvh_for_gpu):
+// the link in the low BVH_COUNT_SHIFT bits, the count above.
+uvec4 bvh_children(uint i) {
     if (TEXELS) {
         return texelFetch(bvh_texels, int(8u * i) + 6);
     }
     return bvh[i].link;
-}
-
-uvec4 bvh_counts(uint i) {
-    if (TEXELS) {
-        return texelFetch(bvh_texels, int(8u * i) + 7);
-    }
-    return bvh[i].count;
 }
 
 // Primitive i, from either layout (bit moves only: the same values).

@@ -35,6 +35,10 @@ pub const GRID_DENSITY: f32 = 3.0;
 pub const BVH_STACK_SIZE: u32 = 64;
 /// Children per BVH node (`pack::layout::BvhNode`).
 pub const BVH_WIDTH: u32 = 4;
+/// On the GPU a BVH child's link and count share one word: the link in
+/// the low `BVH_COUNT_SHIFT` bits, the count (at most `pack::bvh::MAX_LEAF`)
+/// above (`gpu::bvh_for_gpu`; docs/profiling.md, "One word per child").
+pub const BVH_COUNT_SHIFT: u32 = 28;
 /// A BVH box's exit distance is widened by this factor (≥ 1 + 2γ₃, γ₃ =
 /// 3u/(1 − 3u), u = 2⁻²⁴: Ize, "Robust BVH Ray Traversal", 2013), so that
 /// the rounding of (plane − origin)·(1/d) never makes a ray that crosses a

@@ -794,6 +794,50 @@ fn walks_compile_the_kinds_their_structure_holds() {
     assert!(mixed > 0, "no scene file mixes kinds in its structure");
 }
 
+/// The BVH the kernels read (`gpu::bvh_for_gpu`): each child's link and
+/// count in one word (the link below `BVH_COUNT_SHIFT` bits, the count
+/// above, the count field zero), the boxes as packed, for a BVH with
+/// leaves of several primitives and a hybrid's nested nodes; a link
+/// that does not fit is refused with a limits error. (Every GPU test with
+/// the BVH renders through it: the images are the mirror's.)
+#[test]
+fn bvh_children_share_one_word_on_the_gpu() {
+    use whitted::constants::BVH_COUNT_SHIFT;
+    use whitted::gpu::bvh_for_gpu;
+    let mask = (1u32 << BVH_COUNT_SHIFT) - 1;
+    let mut leaves_over_one = 0;
+    for accel in [Accel::Bvh, Accel::Hybrid] {
+        let p = whitted::pack::pack(
+            &whitted::gen::random_spheres(3000, 7),
+            &Settings {
+                accel,
+                ..common::small(8, 8)
+            },
+        )
+        .unwrap();
+        assert!(!p.bvh.is_empty(), "{accel:?}: no BVH nodes");
+        let g = bvh_for_gpu(&p.bvh).unwrap();
+        assert_eq!(g.len(), p.bvh.len());
+        for (a, b) in p.bvh.iter().zip(&g) {
+            assert_eq!(a.bounds, b.bounds);
+            for k in 0..4 {
+                assert_eq!(b.link[k] & mask, a.link[k], "{accel:?}");
+                assert_eq!(b.link[k] >> BVH_COUNT_SHIFT, a.count[k], "{accel:?}");
+                assert_eq!(b.count[k], 0);
+                leaves_over_one += usize::from(a.count[k] > 1);
+            }
+        }
+    }
+    assert!(leaves_over_one > 0, "no leaf of several primitives");
+    let mut n = BvhNode::EMPTY;
+    n.link[2] = 1 << BVH_COUNT_SHIFT;
+    n.count[2] = 1;
+    match bvh_for_gpu(&[n]) {
+        Err(GpuError::Limits(m)) => assert!(m.contains("links to"), "{m}"),
+        other => panic!("a link over 2^28 gave {:?}", other.map(|v| v.len())),
+    }
+}
+
 /// `--shadow-cache`: `auto` is off on a CPU device and on elsewhere,
 /// off sets bit 19 of specialization constant 3 (`SHADOW_CACHE` in
 /// layout.glsl), and the cache changes no pixel and no ray count, on

@@ -786,6 +786,43 @@ pub fn probe(
     Gpu::new(&GpuOptions::default())?.probe(packed, mode, items)
 }
 
+/// The BVH as the kernels read it (binding 11): each node's `link[k]`
+/// holds child k's link in its low `BVH_COUNT_SHIFT` bits and its count
+/// above them, and `count` is zero, so that a node visit reads 7 of the
+/// node's 8 texels and a pop 1 instead of 2 (lavapipe: 2-7 % less device
+/// time on the SPD scenes; docs/profiling.md, "One word per child"). The
+/// CPU mirror walks the packed nodes as they are. A link that does not
+/// fit (over 2^28 nodes or primitives, far past any memory budget) is
+/// refused.
+pub fn bvh_for_gpu(
+    nodes: &[crate::pack::layout::BvhNode],
+) -> Result<Vec<crate::pack::layout::BvhNode>, GpuError> {
+    use crate::constants::{BVH_COUNT_SHIFT, BVH_WIDTH};
+    // Every leaf's count fits above the link.
+    const _: () = assert!(crate::pack::bvh::MAX_LEAF < 1 << (32 - BVH_COUNT_SHIFT));
+    let limit = 1u32 << BVH_COUNT_SHIFT;
+    nodes
+        .iter()
+        .map(|n| {
+            let mut g = *n;
+            for k in 0..BVH_WIDTH as usize {
+                if n.link[k] >= limit || n.count[k] >= 1 << (32 - BVH_COUNT_SHIFT) {
+                    return Err(GpuError::Limits(format!(
+                        "a BVH child links to {} with {} primitives: the GPU's nodes hold links \
+                         below {limit} and counts below {}",
+                        n.link[k],
+                        n.count[k],
+                        1u32 << (32 - BVH_COUNT_SHIFT)
+                    )));
+                }
+                g.link[k] = n.link[k] | n.count[k] << BVH_COUNT_SHIFT;
+                g.count[k] = 0;
+            }
+            Ok(g)
+        })
+        .collect()
+}
+
 /// The packed arrays on the device: bindings 0–6, 11 (the BVH), 12 and 13
 /// (the light buffers).
 struct SceneBuffers {
@@ -1200,7 +1237,7 @@ impl Gpu {
                 bytemuck::cast_slice(&opts.cell_layout.words(p)),
             )?,
             b("refs", bytemuck::cast_slice(&p.refs))?,
-            b("bvh", bytemuck::cast_slice(&p.bvh))?,
+            b("bvh", bytemuck::cast_slice(&bvh_for_gpu(&p.bvh)?))?,
             b("lb_start", bytemuck::cast_slice(&p.lb_start))?,
             b("lb_refs", bytemuck::cast_slice(&p.lb_refs))?,
         ];
