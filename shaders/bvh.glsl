@@ -55,6 +55,14 @@ void bvh_order2(inout float ta, inout uint ka, inout float tb, inout uint kb) {
     kb = swap ? k : kb;
 }
 
+// The link and count of child `slot` (node · BVH_WIDTH + lane), one
+// word in the device's nodes (layout.glsl, bvh_children).
+void bvh_child(uint slot, out uint link, out uint count) {
+    uint child = bvh_children(slot / BVH_WIDTH)[slot % BVH_WIDTH];
+    link = child & BVH_LINK_MASK;
+    count = child >> BVH_COUNT_SHIFT;
+}
+
 // True when prim's cell range (the grid's, Prim.cell_lo/cell_hi) holds
 // coordinate coord on axis (axis 3: none): the grid's previous cell
 // listed it (grid.glsl, seen_before; Rust: trace::grid::seen_before).
@@ -178,10 +186,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                     break;
                 }
                 sp -= 1u;
-                uint slot = stack_slot[sp];
-                uint child = bvh_children(slot / BVH_WIDTH)[slot % BVH_WIDTH];
-                link = child & BVH_LINK_MASK;
-                count = child >> BVH_COUNT_SHIFT;
+                bvh_child(stack_slot[sp], link, count);
                 t = stack_t[sp];
             }
         }
@@ -212,10 +217,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             break;
         }
         sp -= 1u;
-        uint slot = stack_slot[sp];
-        uint child = bvh_children(slot / BVH_WIDTH)[slot % BVH_WIDTH];
-        link = child & BVH_LINK_MASK;
-        count = child >> BVH_COUNT_SHIFT;
+        bvh_child(stack_slot[sp], link, count);
         t = stack_t[sp];
     }
     if (!ended) {
