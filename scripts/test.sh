@@ -7,7 +7,9 @@
 # tests fail, not skip, when no Vulkan device or no povray can be had.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-have_icd() { ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1; }
+# A driver manifest in either place (ls of both fails when one folder is
+# missing, which made every run reinstall the drivers).
+have_icd() { ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1 || ls /etc/vulkan/icd.d/*.json >/dev/null 2>&1; }
 have_layer() { ls /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json >/dev/null 2>&1; }
 need=()
 if ! have_icd || ! have_layer; then
