@@ -162,6 +162,14 @@ const uint BOUNDED_KINDS = (STRUCTURE >> 12) & 127u;
 // time with the cache (docs/profiling.md). Kept under STRUCTURE_ANY.
 const bool SHADOW_CACHE = (STRUCTURE & 0x80080000u) != 0x00080000u;
 
+// Bit 20: the scene has no unbounded primitives (g.counts.x ==
+// g.counts.y: no plane, unclipped quadric or giant), so query_unbounded
+// compiles out. llvmpipe runs a loop's body once, masked, even when no
+// lane enters it: an intersection test of every kind the scene has, on
+// every ray and feeler (SPD mount, teapot and tetra have none;
+// docs/profiling.md). Never under STRUCTURE_ANY.
+const bool NO_UNBOUNDED = (STRUCTURE & 0x80100000u) == 0x00100000u;
+
 // Bit 11: the primitives, the BVH and the grid's (or octree's) cell and
 // reference lists are read through bindings 20 to 23: the buffers of
 // bindings 1, 11, 5 and 6 seen as uniform texel buffers (16-byte texels,

@@ -160,6 +160,9 @@ bool query_prim(inout Query q, Prim prim, uint i, Ray ray, RayPre pre) {
 // q.done says whether the query is done. (The loop ends with `break`:
 // see grid.glsl.)
 void query_unbounded(inout Query q, Ray ray, RayPre pre) {
+    if (NO_UNBOUNDED) {
+        return;
+    }
     for (uint i = g.counts.x; i < g.counts.y; i++) {
         if (query_prim(q, load_prim(i), i, ray, pre)) {
             break;

@@ -741,8 +741,10 @@ fn texel_and_storage_reads_give_one_image() {
 /// The walks compile only the intersection tests of the kinds the
 /// structure holds (`BOUNDED_KINDS`, bits 12-18 of specialization constant
 /// 3): for random spheres on a floor polygon the spheres alone, the floor
-/// being a giant tested by `query_unbounded` with every kind's code. (The
-/// images with it are the CPU mirror's: every other test here.)
+/// being a giant tested by `query_unbounded` with every kind's code; and
+/// `query_unbounded` compiles out where there is nothing unbounded (bit
+/// 20). (The images with them are the CPU mirror's: every other test
+/// here, SPD tetra, mount and teapot in tests/validate_scenes.rs.)
 #[test]
 fn walks_compile_the_kinds_their_structure_holds() {
     use whitted::constants::{KIND_POLYGON, KIND_SPHERE};
@@ -782,7 +784,15 @@ fn walks_compile_the_kinds_their_structure_holds() {
         "rings".into(),
         whitted::pack::pack(&rings, &common::small(8, 8)).unwrap(),
     ));
+    let tetra = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Tetra, Some(2)).unwrap();
+    cases.push((
+        "tetra".into(),
+        whitted::pack::pack(&tetra, &common::small(8, 8)).unwrap(),
+    ));
     let mut mixed = 0;
+    // Bit 20 (`NO_UNBOUNDED`): set exactly where nothing follows the
+    // structure's primitives, so `query_unbounded` compiles out.
+    let mut unbounded = [0, 0];
     for (name, p) in &cases {
         let n = p.globals.counts[0] as usize;
         let want: u32 = p.prims[..n]
@@ -790,8 +800,17 @@ fn walks_compile_the_kinds_their_structure_holds() {
             .fold(0, |k, q| k | 1 << (q.kind_mat & 15));
         assert_eq!(bounded_kinds(p), want, "{name}");
         mixed += usize::from(want.count_ones() > 1);
+        let none = p.globals.counts[0] == p.globals.counts[1];
+        assert_eq!(n == p.prims.len(), none, "{name}");
+        let key = layout_key(&GpuOptions::default(), p);
+        assert_eq!(key >> 20 & 1, u32::from(none), "{name}: NO_UNBOUNDED");
+        unbounded[usize::from(none)] += 1;
     }
     assert!(mixed > 0, "no scene file mixes kinds in its structure");
+    assert!(
+        unbounded[0] > 0 && unbounded[1] > 0,
+        "scenes with and without unbounded primitives: {unbounded:?}"
+    );
 }
 
 /// The BVH the kernels read (`gpu::bvh_for_gpu`): each child's link and

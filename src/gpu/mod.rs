@@ -900,11 +900,12 @@ pub fn structure_key(flags: [u32; 4]) -> u32 {
     accel | walk << 4 | light_buffers << 8
 }
 
-/// Bits 9 to 19 of specialization constant 3 (shaders/layout.glsl):
+/// Bits 9 to 20 of specialization constant 3 (shaders/layout.glsl):
 /// `PRIMS_SOA` and `CELLS_PAIRS` (the primitives' layout and the grid
-/// cells' for `p`), `TEXELS` (the reads), `BOUNDED_KINDS` and, bit 19,
-/// no shadow cache (`opts.shadow_cache` Off; Auto counts as On here:
-/// `Gpu::resolved` settles it first).
+/// cells' for `p`), `TEXELS` (the reads), `BOUNDED_KINDS`, bit 19 no
+/// shadow cache (`opts.shadow_cache` Off; Auto counts as On here:
+/// `Gpu::resolved` settles it first) and bit 20 no unbounded primitives
+/// (`NO_UNBOUNDED`: `query_unbounded` compiles out).
 pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     let prims = match opts.prim_layout {
         PrimLayout::Aos => 0,
@@ -915,6 +916,7 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
         | u32::from(opts.reads == GpuReads::Texel) << 11
         | bounded_kinds(p) << 12
         | u32::from(opts.shadow_cache == GpuShadowCache::Off) << 19
+        | u32::from(p.globals.counts[0] >= p.globals.counts[1]) << 20
 }
 
 /// Bits 12-18 of specialization constant 3 (`BOUNDED_KINDS` in
