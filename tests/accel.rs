@@ -561,6 +561,58 @@ fn the_bvh_tests_fewer_primitives_on_clustered_scenes() {
     );
 }
 
+/// Giants (primitives as large as the scene, kept out of the grid) join
+/// the BVH's tree where it holds their kind already (SPD gears: the
+/// floor polygon among the gears' polygons) and stay out where they would
+/// add one (random spheres on a floor polygon): the GPU's walks compile
+/// only the tree's kinds. Every primitive keeps its rank, the index the
+/// grid's packing gives it, so ties go alike; the images are the grid's.
+#[test]
+fn giants_join_the_bvh_only_among_their_own_kinds() {
+    use std::collections::HashMap;
+    let gears = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Gears, Some(1)).unwrap();
+    let spheres = whitted::gen::random_spheres(400, 5);
+    for (name, s, joins) in [("gears", &gears, true), ("spheres", &spheres, false)] {
+        let settings = |accel| Settings {
+            accel,
+            width: Some(48),
+            height: Some(36),
+            ..Settings::default()
+        };
+        let g = pack::pack(s, &settings(Accel::Grid)).unwrap();
+        let b = pack::pack(s, &settings(Accel::Bvh)).unwrap();
+        assert_eq!((g.structure(), b.structure()), (Accel::Grid, Accel::Bvh));
+        let [gc, bc] = [g.globals.counts, b.globals.counts];
+        assert!(gc[0] < gc[1], "{name}: the grid keeps a giant out");
+        assert_eq!(bc[0] == bc[1], joins, "{name}: {bc:?}");
+        // The BVH keeps each primitive's grid index in cell_lo.
+        let key = |p: &whitted::pack::layout::Prim| {
+            (
+                p.kind_mat,
+                p.data,
+                p.a.map(f32::to_bits),
+                p.b.map(f32::to_bits),
+                p.c.map(f32::to_bits),
+            )
+        };
+        let at: HashMap<_, u32> = g
+            .prims
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (key(p), i as u32))
+            .collect();
+        assert_eq!(at.len(), g.prims.len(), "{name}: primitives told apart");
+        for p in b.prims.iter() {
+            assert_eq!(Some(&p.cell_lo), at.get(&key(p)), "{name}: a rank moved");
+        }
+        let [gi, bi] = [&g, &b].map(|p| whitted::cpu::render(p, &|_, _| {}));
+        assert!(
+            gi.pixels == bi.pixels,
+            "{name}: the BVH's image is not the grid's"
+        );
+    }
+}
+
 /// Rays parallel to the axes and to the axis planes (components exactly
 /// 0, 1/d = ±∞), from lattice points on the primitives' own planes, on a
 /// lattice of boxes and spheres: both structures equal brute force.

@@ -595,24 +595,40 @@ pub const GIANTS_MAX: usize = 8;
 /// in a 74×74×4 grid because of a 24×24 floor. Up to `GIANTS_MAX` finite
 /// primitives that span at least half the scene's extent on some axis are
 /// instead tested against every ray, like planes; the grid then fits the
-/// rest. Which list a primitive is in never changes a hit.
-fn take_out_giants(all: &Bounds, bounded: &mut Vec<(Prim, Bounds)>, unbounded: &mut Vec<Prim>) {
+/// rest. Which list a primitive is in never changes a hit. The giants
+/// go to the end of `unbounded`; their bounds are returned, in that
+/// order: a BVH takes them back into its tree (`pack`) when they are of
+/// kinds the tree holds already, where a box test at a node turns most
+/// rays away from them (the floor polygon under the SPD's gears:
+/// feelers cast upwards never reach its leaf). A giant of another kind
+/// stays out: the GPU's walks compile only the kinds their structure
+/// holds, and a floor polygon among spheres would put the polygon's
+/// test into every sphere test (docs/profiling.md, "Giants of the
+/// tree's own kinds").
+fn take_out_giants(
+    all: &Bounds,
+    bounded: &mut Vec<(Prim, Bounds)>,
+    unbounded: &mut Vec<Prim>,
+) -> Vec<Bounds> {
     let e = all.extent();
     let giant = |b: &Bounds| (0..3).any(|i| e[i] > 0.0 && b.hi[i] - b.lo[i] >= 0.5 * e[i]);
     let count = bounded.iter().filter(|(_, b)| giant(b)).count();
     if count == 0 || count > GIANTS_MAX || count == bounded.len() {
-        return;
+        return Vec::new();
     }
     // In place, both sides in their order: a partition into two new
     // vectors copied every primitive (598 k spheres and one floor: 0.13 s).
     unbounded.reserve(count);
+    let mut giants = Vec::with_capacity(count);
     bounded.retain(|(p, b)| {
         let g = giant(b);
         if g {
             unbounded.push(*p);
+            giants.push(*b);
         }
         !g
     });
+    giants
 }
 
 /// Spreads the low 10 bits of `v` to every third bit.
@@ -977,7 +993,12 @@ pub fn pack_with_progress(
         .iter()
         .fold(Bounds::EMPTY, |a, (_, bb)| a.union(bb));
     let t0 = Instant::now();
-    take_out_giants(&finite, &mut b.bounded, &mut b.unbounded);
+    let giants = take_out_giants(&finite, &mut b.bounded, &mut b.unbounded);
+    // Where the giants start in `unbounded` (after the planes and
+    // unclipped quadrics).
+    let giants_at = b.unbounded.len() - giants.len();
+    let kinds =
+        |ps: &mut dyn Iterator<Item = &Prim>| ps.fold(0u32, |k, p| k | 1 << (p.kind_mat & 15));
     let n = b.bounded.len() as u64;
     progress(Stage::Sort, 0, n);
     morton_order(&mut b.bounded);
@@ -1010,24 +1031,45 @@ pub fn pack_with_progress(
     }
     need.bvh = structure == Accel::Bvh;
     need.octree = structure == Accel::Octree;
-    let n_bounded = b.bounded.len() as u32;
+    let mut n_bounded = b.bounded.len() as u32;
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + b.unbounded.len());
     // The octree's shape (leaves, depth, most in a leaf), when built.
     let mut octree_shape = None;
     // The hybrid's nested cells and their references, when built.
     let mut nested_counts = (0, 0);
     let max_refs = |cells: u64| need.max_refs(budget, cells);
+    // The primitives the structure holds, by their index in the tree's
+    // order: the bounded ones, then (under the BVH) the giants.
+    let mut bounds = bounds;
+    // Under the BVH the giants go back into the tree when it holds their
+    // kinds already (`take_out_giants`), keeping their rank among the
+    // unbounded primitives.
+    let giant_kinds = kinds(&mut b.unbounded[giants_at..].iter());
+    let take_back = need.bvh
+        && !giants.is_empty()
+        && giant_kinds & !kinds(&mut b.bounded.iter().map(|(p, _)| p)) == 0;
+    let taken = if take_back { giants.len() } else { 0 };
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
+        bounds.extend_from_slice(&giants[..taken]);
+        n_bounded = bounds.len() as u32;
         let tree = bvh::build(&bounds, progress);
         // Leaf order: each leaf a contiguous run of primitives, each
-        // keeping its rank (its index in the grid's order) in `cell_lo`
+        // keeping its rank (its index in the grid's order: the bounded
+        // primitives, then the unbounded ones, giants last) in `cell_lo`
         // for ties (`trace::query::rank`).
+        let n = b.bounded.len();
         for &i in &tree.order {
-            let mut p = b.bounded[i as usize].0;
-            p.cell_lo = i;
+            let i = i as usize;
+            let (mut p, rank) = if i < n {
+                (b.bounded[i].0, i)
+            } else {
+                (b.unbounded[giants_at + i - n], n + giants_at + i - n)
+            };
+            p.cell_lo = rank as u32;
             prims.push(p);
         }
+        b.unbounded.truncate(b.unbounded.len() - taken);
         let empty = grid::Grid {
             dims: [1, 1, 1],
             cell_start: vec![0, 0],
@@ -1134,8 +1176,12 @@ pub fn pack_with_progress(
     let build_seconds = t0.elapsed().as_secs_f64();
     prims.extend(b.unbounded);
     if need.bvh {
-        for (i, p) in prims.iter_mut().enumerate().skip(n_bounded as usize) {
-            p.cell_lo = i as u32;
+        // The planes and unbounded quadrics: their rank is their index
+        // after the bounded primitives (giants, ranked after them, are
+        // in the tree).
+        let n = n_bounded as usize - taken;
+        for (j, p) in prims.iter_mut().skip(n_bounded as usize).enumerate() {
+            p.cell_lo = (n + j) as u32;
         }
     }
 
