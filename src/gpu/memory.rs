@@ -30,7 +30,7 @@ pub struct Buffer {
     allocation: Option<Allocation>,
     pub size: u64,
     /// A view of the buffer as texels (R32G32B32A32_UINT or R32_UINT), for
-    /// the shaders' texel-buffer bindings (`TEXEL_BINDINGS` in mod.rs);
+    /// the shaders' texel-buffer bindings (`texel_binding` in mod.rs);
     /// null until `add_texel_view`.
     pub(crate) view: vk::BufferView,
 }

@@ -798,21 +798,20 @@ pub fn bvh_for_gpu(
     nodes: &[crate::pack::layout::BvhNode],
 ) -> Result<Vec<crate::pack::layout::BvhNode>, GpuError> {
     use crate::constants::{BVH_COUNT_SHIFT, BVH_WIDTH};
+    const MAX_COUNT: u32 = 1 << (32 - BVH_COUNT_SHIFT);
     // Every leaf's count fits above the link.
-    const _: () = assert!(crate::pack::bvh::MAX_LEAF < 1 << (32 - BVH_COUNT_SHIFT));
+    const _: () = assert!((crate::pack::bvh::MAX_LEAF as u32) < MAX_COUNT);
     let limit = 1u32 << BVH_COUNT_SHIFT;
     nodes
         .iter()
         .map(|n| {
             let mut g = *n;
             for k in 0..BVH_WIDTH as usize {
-                if n.link[k] >= limit || n.count[k] >= 1 << (32 - BVH_COUNT_SHIFT) {
+                if n.link[k] >= limit || n.count[k] >= MAX_COUNT {
                     return Err(GpuError::Limits(format!(
                         "a BVH child links to {} with {} primitives: the GPU's nodes hold links \
-                         below {limit} and counts below {}",
-                        n.link[k],
-                        n.count[k],
-                        1u32 << (32 - BVH_COUNT_SHIFT)
+                         below {limit} and counts below {MAX_COUNT}",
+                        n.link[k], n.count[k]
                     )));
                 }
                 g.link[k] = n.link[k] | n.count[k] << BVH_COUNT_SHIFT;
@@ -925,10 +924,7 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
 /// only those kinds' intersection tests.
 pub fn bounded_kinds(p: &crate::pack::Packed) -> u32 {
     let n = (p.globals.counts[0] as usize).min(p.prims.len());
-    p.prims[..n]
-        .iter()
-        .fold(0, |k, prim| k | 1 << (prim.kind_mat & 15).min(31))
-        & 127
+    crate::pack::layout::Prim::kind_bits(&p.prims[..n]) & 127
 }
 
 /// A render's image size and sample lattice (`Gpu::lattice`): pixels w×h,

@@ -87,6 +87,12 @@ impl Prim {
     pub fn material(&self) -> u32 {
         self.kind_mat >> 4
     }
+
+    /// The kinds among `prims`, bit k for `KIND` k (the `FEAT_*` bit of
+    /// each kind): what a structure holding them must be able to test.
+    pub fn kind_bits<'a>(prims: impl IntoIterator<Item = &'a Prim>) -> u32 {
+        prims.into_iter().fold(0, |k, p| k | 1 << p.kind())
+    }
 }
 
 /// Material, all colours premultiplied: ka = k_a·colour, kd = k_d·colour.

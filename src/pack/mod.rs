@@ -997,8 +997,6 @@ pub fn pack_with_progress(
     // Where the giants start in `unbounded` (after the planes and
     // unclipped quadrics).
     let giants_at = b.unbounded.len() - giants.len();
-    let kinds =
-        |ps: &mut dyn Iterator<Item = &Prim>| ps.fold(0u32, |k, p| k | 1 << (p.kind_mat & 15));
     let n = b.bounded.len() as u64;
     progress(Stage::Sort, 0, n);
     morton_order(&mut b.bounded);
@@ -1044,10 +1042,11 @@ pub fn pack_with_progress(
     // Under the BVH the giants go back into the tree when it holds their
     // kinds already (`take_out_giants`), keeping their rank among the
     // unbounded primitives.
-    let giant_kinds = kinds(&mut b.unbounded[giants_at..].iter());
     let take_back = need.bvh
         && !giants.is_empty()
-        && giant_kinds & !kinds(&mut b.bounded.iter().map(|(p, _)| p)) == 0;
+        && Prim::kind_bits(&b.unbounded[giants_at..])
+            & !Prim::kind_bits(b.bounded.iter().map(|(p, _)| p))
+            == 0;
     let taken = if take_back { giants.len() } else { 0 };
     let (g, tree) = if need.bvh {
         budget.check(&need)?;
