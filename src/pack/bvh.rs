@@ -55,11 +55,10 @@ pub const PAD_REL: f64 = 1e-5;
 pub const PAD_ULPS: f64 = 8.0;
 
 /// Bytes per finite primitive while the BVH is built: the build items
-/// (28), the leaf order (4), the binary tree's entries (at most 2 per
-/// primitive: a leaf holds at least one) with a copy of a subtree's
-/// entries where parallel subtrees join (2 × 64), its heights (4), and
-/// the 4-wide nodes (`BYTES_PER_PRIM`).
-pub const BUILD_BYTES_PER_PRIM: u64 = 28 + 4 + 2 * 64 + 4 + BYTES_PER_PRIM;
+/// (28), the leaf order (4), the binary tree's entries (a slot of two
+/// 32-byte entries per primitive, allotted before the build: 64), its
+/// heights (4), and the 4-wide nodes (`BYTES_PER_PRIM`).
+pub const BUILD_BYTES_PER_PRIM: u64 = 28 + 4 + 64 + 4 + BYTES_PER_PRIM;
 /// Bytes per finite primitive the BVH keeps for the render, at most: one
 /// 128-byte node per binary interior node (where the stack forbids
 /// opening any child), fewer than one per primitive. A heuristic tree
@@ -248,18 +247,21 @@ pub fn build(bounds: &[Bounds], progress: Progress) -> Bvh {
         total: n as u64,
         progress,
     };
-    let mut nodes = Vec::new();
+    // Every interior node's slot, allotted before the build (see
+    // `build_rec`): n − 1 slots of two children each.
+    let mut nodes = vec![BvhChild::EMPTY; 2 * (n - 1)];
     let mut shape = Shape::default();
     let nb = node_bounds(&items);
-    let root = build_rec(&ctx, &mut items, nb, 0, 0, &mut nodes, &mut shape);
+    let root = build_rec(&ctx, &mut items, nb, 0, 0, 0, &mut nodes, &mut shape);
     if root.count > 0 {
         // The whole scene is one leaf: a root whose second child is empty.
         nodes = vec![root, BvhChild::EMPTY];
+        shape.interior = 1;
     }
     let (wide, depth) = collapse(&nodes);
     progress(Stage::Bvh, n as u64, n as u64);
     Bvh {
-        binary_nodes: (nodes.len() / 2) as u32,
+        binary_nodes: shape.interior,
         nodes: wide,
         order: items.iter().map(|it| it.idx).collect(),
         depth,
@@ -374,12 +376,15 @@ struct Ctx<'a> {
 struct Shape {
     leaves: u32,
     max_leaf: u32,
+    /// Interior nodes of the binary tree.
+    interior: u32,
 }
 
 impl Shape {
     fn join(&mut self, o: &Shape) {
         self.leaves += o.leaves;
         self.max_leaf = self.max_leaf.max(o.max_leaf);
+        self.interior += o.interior;
     }
 }
 
@@ -389,16 +394,24 @@ fn ceil_log2(n: usize) -> u32 {
 }
 
 /// Builds the subtree of `items` (at positions `first..` of the final
-/// order), an interior node of it at `depth`; appends its interior nodes
-/// to `out` (links relative to `out`'s start) and returns the child entry
-/// that points at it (a leaf, or the interior node).
+/// order), an interior node of it at `depth`, and returns the child entry
+/// that points at it (a leaf, or the interior node). Its interior nodes
+/// go into `out`, the slots `slot..slot + n − 1` of the binary tree (two
+/// entries each): a subtree of n primitives has at most n − 1 interior
+/// nodes, so its root takes slot `slot`, the left subtree (m primitives)
+/// the next m − 1 and the right one the rest. Both sides of a parallel
+/// split write their own part of one array, with no copy and no growth
+/// (a slot a leaf leaves unused stays `EMPTY`, which no node links to);
+/// children always follow their parent, as `collapse` needs.
+#[allow(clippy::too_many_arguments)]
 fn build_rec(
     ctx: &Ctx,
     items: &mut [Item],
     NodeBounds { bb, cb }: NodeBounds,
     first: u32,
+    slot: u32,
     depth: u32,
-    out: &mut Vec<BvhChild>,
+    out: &mut [BvhChild],
     shape: &mut Shape,
 ) -> BvhChild {
     let n = items.len();
@@ -450,66 +463,40 @@ fn build_rec(
         split
     };
     let (left, right) = items.split_at_mut(mid);
-    let node = out.len() / 2;
-    out.push(BvhChild::EMPTY);
-    out.push(BvhChild::EMPTY);
+    let (mine, rest) = out.split_at_mut(2);
+    let (lout, rout) = rest.split_at_mut(2 * (mid - 1));
+    let (lslot, rslot) = (slot + 1, slot + mid as u32);
+    let rfirst = first + mid as u32;
     let (l, r) = if n >= PARALLEL_MIN {
-        let ((mut lv, l, ls), (mut rv, r, rs)) = rayon::join(
+        let ((l, ls), (r, rs)) = rayon::join(
             || {
-                let mut v = Vec::new();
                 let mut s = Shape::default();
-                let c = build_rec(ctx, left, lb, first, depth + 1, &mut v, &mut s);
-                (v, c, s)
+                let c = build_rec(ctx, left, lb, first, lslot, depth + 1, lout, &mut s);
+                (c, s)
             },
             || {
-                let mut v = Vec::new();
                 let mut s = Shape::default();
-                let c = build_rec(
-                    ctx,
-                    right,
-                    rb,
-                    first + mid as u32,
-                    depth + 1,
-                    &mut v,
-                    &mut s,
-                );
-                (v, c, s)
+                let c = build_rec(ctx, right, rb, rfirst, rslot, depth + 1, rout, &mut s);
+                (c, s)
             },
         );
         shape.join(&ls);
         shape.join(&rs);
-        let l = append(out, &mut lv, l);
-        let r = append(out, &mut rv, r);
         (l, r)
     } else {
-        let l = build_rec(ctx, left, lb, first, depth + 1, out, shape);
-        let r = build_rec(ctx, right, rb, first + mid as u32, depth + 1, out, shape);
+        let l = build_rec(ctx, left, lb, first, lslot, depth + 1, lout, shape);
+        let r = build_rec(ctx, right, rb, rfirst, rslot, depth + 1, rout, shape);
         (l, r)
     };
-    out[2 * node] = l;
-    out[2 * node + 1] = r;
+    mine[0] = l;
+    mine[1] = r;
+    shape.interior += 1;
     BvhChild {
         lo: bb.lo,
         hi: bb.hi,
-        link: node as u32,
+        link: slot,
         count: 0,
     }
-}
-
-/// Appends a subtree built on its own (links relative to its start) to
-/// `out`, and returns its entry with the link moved likewise.
-fn append(out: &mut Vec<BvhChild>, sub: &mut Vec<BvhChild>, mut entry: BvhChild) -> BvhChild {
-    let base = (out.len() / 2) as u32;
-    for c in sub.iter_mut() {
-        if c.count == 0 {
-            c.link += base;
-        }
-    }
-    if entry.count == 0 {
-        entry.link += base;
-    }
-    out.append(sub);
-    entry
 }
 
 /// Bins per unit of (twice) the centroid on `axis`.
