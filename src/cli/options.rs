@@ -170,9 +170,10 @@ pub struct GpuArgs {
     #[arg(long, value_name = "N")]
     pub device: Option<usize>,
     /// Edge of a GPU dispatch tile in lattice samples: one submission per
-    /// tile, so none runs long [default: 256, or the shape `whitted profile
-    /// --save` stored for the device when neither this nor --workgroup is
-    /// given; -v says so].
+    /// tile, so none runs long [default: 256 on a CPU Vulkan device such as
+    /// lavapipe, 1024 on a GPU, or the shape `whitted profile --save` stored
+    /// for the device when neither this nor --workgroup is given; -v says
+    /// so].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub tile: Option<u32>,
     /// GPU workgroup shape (specialization constants of the shader)
@@ -258,7 +259,7 @@ impl GpuArgs {
         GpuOptions {
             device: self.device,
             real_gpu_only: false,
-            tile: self.tile.unwrap_or(gpu::DEFAULT_TILE),
+            tile: self.tile.unwrap_or(0),
             workgroup: self.workgroup.unwrap_or(gpu::DEFAULT_WORKGROUP),
             saved_shape: self.tile.is_none() && self.workgroup.is_none(),
             staging: false,

@@ -22,7 +22,7 @@ pub struct ProfileArgs {
     /// Tile edges to try (lattice samples per side of one submission);
     /// `full`: one tile for the image (up to the per-submission cap).
     #[arg(long, value_delimiter = ',', value_parser = profile::parse_tile, value_name = "N,...",
-          default_value = "64,128,256,full")]
+          default_value = "64,128,256,1024,full")]
     pub tiles: Vec<u32>,
     /// GPU kernels to profile (comma-separated, e.g. mega,wavefront): every
     /// shape and tile once per kernel; default: the one --kernel names
@@ -122,7 +122,9 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
         );
         println!(
             "\nphases (seconds; first render / second render of {}x{}, tile {}):",
-            base.workgroup[0], base.workgroup[1], base.tile
+            base.workgroup[0],
+            base.workgroup[1],
+            crate::gpu::tile_for(base.tile, info.kind)
         );
         println!("  {:<10} {:>9}", "load", format!("{load:.4}"));
         println!("  {:<10} {:>9}", "pack", format!("{pack:.4}"));
