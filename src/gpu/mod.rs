@@ -1532,22 +1532,33 @@ impl Gpu {
         }
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         self.check_fits(packed, 0, CellLayout::Offsets)?;
+        // The primitives as structures, the cells as offsets, storage
+        // reads, the shadow cache on: the layouts as packed.
+        let layouts = GpuOptions {
+            prim_layout: PrimLayout::Aos,
+            cell_layout: CellLayout::Offsets,
+            reads: GpuReads::Storage,
+            shadow_cache: GpuShadowCache::On,
+            ..GpuOptions::default()
+        };
+        let g = &packed.globals;
         let kernel = self.kernel(
             name,
             spirv,
             // The items (9), the results (10).
             &kernel_bindings(&[9, 10]),
             std::mem::size_of::<ProbePush>() as u32,
-            &[],
+            // Specialized for the scene as the render kernels are, so that
+            // the probe tests the code a render runs (the scene's kinds and
+            // features, its structure's walk), and the driver compiles only
+            // that. Unspecialized (every walk and kind), no probe finished
+            // within 30 s on an NVIDIA H200 (docs/profiling.md).
+            &[
+                (2, g.trace[1]),
+                (3, structure_key(g.flags) | layout_key(&layouts, packed)),
+            ],
         )?;
         let cmds = Commands::new(&self.ctx)?;
-        // The probe kernel keeps STRUCTURE's default: the primitives as
-        // structures, the cells as offsets.
-        let layouts = GpuOptions {
-            prim_layout: PrimLayout::Aos,
-            cell_layout: CellLayout::Offsets,
-            ..GpuOptions::default()
-        };
         let scene = self.upload_scene(&cmds, packed, &layouts)?;
         let input = Buffer::host_input(&self.ctx, "probe items", bytemuck::cast_slice(items))?;
         let out_len = std::mem::size_of_val(items);
