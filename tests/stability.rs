@@ -94,14 +94,17 @@ fn far_from_the_origin_the_image_holds() {
         );
         // The GPU renders the same image: bit for bit on a CPU device;
         // within 1 dB of the CPU's PSNR on a GPU (division and sqrt may
-        // differ by an ULP, docs/gpu.md).
+        // differ by an ULP, docs/gpu.md), or both above 100 dB (an RMS
+        // error of 1e-5, a 400th of an 8-bit step, where a dB is no longer
+        // a difference anyone sees: an NVIDIA H200 gave 126.6 dB at 10^-1
+        // where the CPU gave 130.5).
         let exact = common::gpu().is_some_and(|g| g.info().kind == whitted::gpu::DeviceKind::Cpu);
         if let (Some(same), Some(pg)) = (r.gpu_same, r.psnr_gpu) {
             if exact {
                 assert!(same, "10^{}: the GPU differs from the CPU", r.k);
             } else {
                 assert!(
-                    (pg - r.psnr).abs() < 1.0,
+                    (pg - r.psnr).abs() < 1.0 || pg.min(r.psnr) > 100.0,
                     "10^{}: GPU {pg:.2} dB, CPU {:.2} dB",
                     r.k,
                     r.psnr
