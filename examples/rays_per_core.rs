@@ -99,6 +99,29 @@ fn main() {
         m(eye.len() + feelers.len(), te + ts),
     );
 
+    // The work behind those times: one more pass of each, counted.
+    let (mut ew, mut fw) = (Work::default(), Work::default());
+    for (ray, pre) in &eye {
+        closest_hit(&s, ray, pre, f32::INFINITY, &mut ew);
+    }
+    for (ray, pre, dist, li) in &feelers {
+        transmittance(&s, ray, pre, *dist, *li, &mut fw);
+    }
+    let per = |w: &Work, n: usize| {
+        let n = n.max(1) as f64;
+        format!(
+            "{:.2} nodes, {:.2} cells, {:.2} tests",
+            w.nodes as f64 / n,
+            w.cells as f64 / n,
+            w.tests as f64 / n
+        )
+    };
+    println!(
+        "per eye ray: {}; per feeler: {}",
+        per(&ew, eye.len()),
+        per(&fw, feelers.len())
+    );
+
     match after("--packet").map(String::as_str) {
         Some("4") => packets::<4>(&s, &p, repeat, (te, ts)),
         Some("8") => packets::<8>(&s, &p, repeat, (te, ts)),
