@@ -2,8 +2,10 @@
 //! optionally joined, with a legend. Used by `whitted bench` (and the
 //! speed-against-accuracy chart). Text needs a TrueType font: the first of
 //! the usual system fonts that exists (DejaVu Sans, Liberation Sans, ...,
-//! or what `fc-match sans-serif` names); without one, plotting fails with a
-//! message saying which package to install.
+//! or what `fc-match sans-serif` names), or the file `WHITTED_FONT` names
+//! (then that one only); without one, plotting fails with a message saying
+//! which package to install, and the commands check that before their work
+//! (`ready`).
 
 use anyhow::{anyhow, bail, Context, Result};
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
@@ -64,10 +66,35 @@ const FONT_PATHS: &[&str] = &[
     "C:\\Windows\\Fonts\\arial.ttf",
 ];
 
+/// The variable that names the charts' font, overriding the search.
+pub const FONT_ENV: &str = "WHITTED_FONT";
+
+/// Checks, before a command's work, that the chart it was asked for (by
+/// `flag`, to `path`) can have its text: a clear error naming both now
+/// rather than after a long benchmark.
+pub fn ready(flag: &str, path: &Path) -> Result<()> {
+    font().map_err(|e| anyhow!("{flag} {}: {e}", path.display()))
+}
+
 /// Registers a system TrueType font as plotters' "sans-serif", once.
 fn font() -> Result<()> {
     static FONT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
     let r = FONT.get_or_init(|| {
+        if let Some(p) = std::env::var_os(FONT_ENV).filter(|v| !v.is_empty()) {
+            let p = PathBuf::from(p);
+            let bytes = std::fs::read(&p)
+                .map_err(|e| format!("{FONT_ENV}={}: cannot read: {e}", p.display()))?;
+            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+            for style in [FontStyle::Normal, FontStyle::Bold] {
+                if plotters::style::register_font("sans-serif", style, bytes).is_err() {
+                    return Err(format!(
+                        "{FONT_ENV}={}: not a usable TrueType font",
+                        p.display()
+                    ));
+                }
+            }
+            return Ok(p);
+        }
         let mut candidates: Vec<PathBuf> = FONT_PATHS.iter().map(PathBuf::from).collect();
         if let Ok(o) = std::process::Command::new("fc-match")
             .args(["-f", "%{file}", "sans-serif"])

@@ -169,6 +169,35 @@ fn bench_refuses_bad_requests_before_work() {
     }
 }
 
+/// A chart without a font is refused before the work (exit 2, the flag,
+/// the file and the font named, nothing written): `WHITTED_FONT` names a
+/// missing file, then one that is not a font.
+#[test]
+fn a_plot_without_a_font_is_refused_before_work() {
+    let d = tempfile::tempdir().unwrap();
+    let not_a_font = d.path().join("font.ttf");
+    std::fs::write(&not_a_font, b"not a font").unwrap();
+    for (font, fragment) in [
+        (d.path().join("missing.ttf"), "cannot read"),
+        (not_a_font, "not a usable TrueType font"),
+    ] {
+        let out = whitted()
+            .current_dir(d.path())
+            .env("WHITTED_FONT", &font)
+            .args(["bench", "--suite", "spheres", "--backends", "cpu"])
+            .args(["--resolution", "8x8", "--csv", "b.csv", "--plot", "b.svg"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains("--plot b.svg") && err.contains("WHITTED_FONT") && err.contains(fragment),
+            "{err}"
+        );
+        assert!(!d.path().join("b.csv").exists() && !d.path().join("b.svg").exists());
+    }
+}
+
 /// `--accel grid,bvh`: each backend once per structure, labelled by it,
 /// with that structure's counters (cells for the grid, nodes for the BVH)
 /// and the same rays.

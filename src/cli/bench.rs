@@ -357,6 +357,9 @@ pub fn run(a: BenchArgs, ui: Ui) -> Result<u8> {
         });
     }
     files::check_outputs(&outputs, &[]).map_err(user)?;
+    if let Some(p) = &a.plot {
+        crate::plot::ready("--plot", p).map_err(user)?;
+    }
     let engines = engines(&a)?;
     let tmp;
     let work = match &a.keep {

@@ -61,6 +61,7 @@ pub fn run(a: ChartArgs, ui: Ui) -> Result<u8> {
     outputs.extend(Output::optional("--png", &a.png, &["png"], false));
     outputs.extend(Output::optional("--csv", &a.csv, &["csv"], true));
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
+    crate::plot::ready("-o", &a.output).map_err(user)?;
     let scene = super::load_scene(ui, &a.scene)?;
     let mut reference = super::reference::ref_settings(&scene, &a.size, a.reference_spp, None);
     reference.sampling = crate::pack::Sampling::Centers;

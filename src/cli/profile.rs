@@ -59,6 +59,9 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
     .flatten()
     .collect();
     files::check_outputs(&outputs, &[&a.scene]).map_err(user)?;
+    if let Some(p) = &a.plot {
+        crate::plot::ready("--plot", p).map_err(user)?;
+    }
     let t = Instant::now();
     let scene = super::load_scene(ui, &a.scene)?;
     let load = t.elapsed().as_secs_f64();
