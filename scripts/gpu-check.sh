@@ -11,7 +11,9 @@
 #   scripts/gpu-check.sh --pack DIR    # stripped binaries in DIR/bins.tar.xz
 # Then, on the GPU machine, in a copy of this checkout with DIR beside it:
 #   scripts/gpu-check.sh DIR OUT       # log, tests, CSVs, heat map: 7 files
-# (the charts need a TrueType font: fonts-dejavu-core). The tests take the
+# (the charts need a TrueType font: fonts-dejavu-core, or WHITTED_FONT,
+# which the script points at matplotlib's copy where it finds no other).
+# The tests take the
 # longest: on an H200 the gpu and probe binaries had not finished after
 # 150 s each (docs/profiling.md), hence a 900 s limit per binary.
 # If the checkout there is not where it was built, the run links the build
@@ -49,6 +51,11 @@ if [ -n "$built" ] && [ "$built" != "$PWD" ] && [ ! -e "$built" ]; then
 fi
 mkdir -p target/debug target/tmp && cp "$B/whitted-dbg" target/debug/whitted
 W=$B/whitted
+# No system font (the H200's image has none): matplotlib's DejaVu Sans.
+if [ -z "${WHITTED_FONT:-}" ] && ! ls /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf >/dev/null 2>&1; then
+  f=$(python3 -c 'import matplotlib, os; print(os.path.join(os.path.dirname(matplotlib.__file__), "mpl-data/fonts/ttf/DejaVuSans.ttf"))' 2>/dev/null)
+  [ -f "$f" ] && export WHITTED_FONT=$f && el "WHITTED_FONT=$f"
+fi
 export WHITTED_PIPELINE_CACHE=/tmp/gpu-check-pipelines WHITTED_REQUIRE_GPU=1
 el devices; timeout 30 "$W" devices
 # The first render of each kernel variant compiles its pipeline: timed
