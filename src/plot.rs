@@ -84,16 +84,7 @@ fn font() -> Result<()> {
             let p = PathBuf::from(p);
             let bytes = std::fs::read(&p)
                 .map_err(|e| format!("{FONT_ENV}={}: cannot read: {e}", p.display()))?;
-            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-            for style in [FontStyle::Normal, FontStyle::Bold] {
-                if plotters::style::register_font("sans-serif", style, bytes).is_err() {
-                    return Err(format!(
-                        "{FONT_ENV}={}: not a usable TrueType font",
-                        p.display()
-                    ));
-                }
-            }
-            return Ok(p);
+            return register(p, bytes).map_err(|e| format!("{FONT_ENV}={e}"));
         }
         let mut candidates: Vec<PathBuf> = FONT_PATHS.iter().map(PathBuf::from).collect();
         if let Ok(o) = std::process::Command::new("fc-match")
@@ -107,18 +98,24 @@ fn font() -> Result<()> {
         }
         for p in candidates {
             if let Ok(bytes) = std::fs::read(&p) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                for style in [FontStyle::Normal, FontStyle::Bold] {
-                    if plotters::style::register_font("sans-serif", style, bytes).is_err() {
-                        return Err(format!("{}: not a usable TrueType font", p.display()));
-                    }
-                }
-                return Ok(p);
+                return register(p, bytes);
             }
         }
         Err("no TrueType font found for the chart's text (install fonts-dejavu-core)".into())
     });
     r.as_ref().map(|_| ()).map_err(|e| anyhow!("{e}"))
+}
+
+/// Registers the font file `p` (its `bytes`, kept for the process) as
+/// "sans-serif", regular and bold.
+fn register(p: PathBuf, bytes: Vec<u8>) -> Result<PathBuf, String> {
+    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+    for style in [FontStyle::Normal, FontStyle::Bold] {
+        if plotters::style::register_font("sans-serif", style, bytes).is_err() {
+            return Err(format!("{}: not a usable TrueType font", p.display()));
+        }
+    }
+    Ok(p)
 }
 
 /// A heat map: a value per (row, column), None where there is none.

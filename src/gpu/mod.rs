@@ -937,6 +937,18 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
         | u32::from(p.globals.counts[0] >= p.globals.counts[1]) << 20
 }
 
+/// Specialization constants 2 and 3 of every kernel that walks a scene
+/// (render, wavefront stages, probe): the scene's kinds and features
+/// (`FEATURES`) and its structure with `opts`' layouts (`STRUCTURE`), so
+/// that a driver compiles only the code `packed` runs.
+pub fn scene_spec(packed: &crate::pack::Packed, opts: &GpuOptions) -> [(u32, u32); 2] {
+    let g = &packed.globals;
+    [
+        (2, g.trace[1]),
+        (3, structure_key(g.flags) | layout_key(opts, packed)),
+    ]
+}
+
 /// Bits 12-18 of specialization constant 3 (`BOUNDED_KINDS` in
 /// shaders/layout.glsl): the kinds of the primitives the structure holds
 /// (the first `counts[0]`), bit k for `KIND` k, so that the walks compile
@@ -1415,13 +1427,16 @@ impl Gpu {
             // The samples (7), the counters (8).
             &kernel_bindings(&[7, 8]),
             std::mem::size_of::<RenderPush>() as u32,
-            &[
-                (0, opts.workgroup[0]),
-                (1, opts.workgroup[1]),
-                (2, g.trace[1]),
-                (3, structure_key(g.flags) | layout_key(opts, packed)),
-                (4, opts.lane_pixels),
-            ],
+            &{
+                let [features, structure] = scene_spec(packed, opts);
+                [
+                    (0, opts.workgroup[0]),
+                    (1, opts.workgroup[1]),
+                    features,
+                    structure,
+                    (4, opts.lane_pixels),
+                ]
+            },
         )?;
         phases.lap("pipeline");
         let cmds = Commands::new(&self.ctx)?;
@@ -1541,7 +1556,6 @@ impl Gpu {
             shadow_cache: GpuShadowCache::On,
             ..GpuOptions::default()
         };
-        let g = &packed.globals;
         let kernel = self.kernel(
             name,
             spirv,
@@ -1553,10 +1567,7 @@ impl Gpu {
             // features, its structure's walk), and the driver compiles only
             // that. Unspecialized (every walk and kind), no probe finished
             // within 30 s on an NVIDIA H200 (docs/profiling.md).
-            &[
-                (2, g.trace[1]),
-                (3, structure_key(g.flags) | layout_key(&layouts, packed)),
-            ],
+            &scene_spec(packed, &layouts),
         )?;
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, &layouts)?;

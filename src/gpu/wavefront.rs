@@ -17,8 +17,7 @@ use super::dispatch::{self, Commands, Stage, Work};
 use super::memory::Buffer;
 use super::pipeline::Kernel;
 use super::{
-    kernel_bindings, layout_key, mib, read_back, shaders, structure_key, Gpu, GpuError, GpuOptions,
-    Phases,
+    kernel_bindings, mib, read_back, scene_spec, shaders, Gpu, GpuError, GpuOptions, Phases,
 };
 use crate::cpu::Frame;
 use crate::pack::Packed;
@@ -219,12 +218,8 @@ impl Gpu {
         let mut phases = Phases::start();
         let [wx, wy] = opts.workgroup;
         let lanes = wx * wy;
-        let spec = [
-            (0, wx),
-            (1, wy),
-            (2, g.trace[1]),
-            (3, structure_key(g.flags) | layout_key(opts, packed)),
-        ];
+        let [features, structure] = scene_spec(packed, opts);
+        let spec = [(0, wx), (1, wy), features, structure];
         let binds = bindings();
         let kernels: Vec<Arc<Kernel>> = STAGES
             .iter()
