@@ -139,9 +139,12 @@ fn check_against_brute(p: &Packed, rays: &[RaySpec]) -> Result<(), TestCaseError
             p.prims.len()
         };
         prop_assert!(work.tests <= most as u64);
+        // The same distance and the same primitive: under the BVH a
+        // halved cone is two identical copies (`pack::bvh_pieces`), either
+        // of which may be the one found.
         prop_assert_eq!(
-            a.map(|h| (h.0.t, h.1)),
-            b.map(|h| (h.0.t, h.1)),
+            a.map(|h| (h.0.t, p.prims[h.1 as usize])),
+            b.map(|h| (h.0.t, p.prims[h.1 as usize])),
             "{:?}",
             p.structure()
         );
@@ -310,6 +313,76 @@ proptest! {
     }
 }
 
+/// Long opaque cones (SPD rings' cylinders) go into the BVH as two
+/// halves, each a copy of the primitive in its own leaf; glass ones and
+/// short ones whole (`pack::bvh_pieces`). Both queries still equal brute
+/// force, the copies are identical, and whole-image renders on the grid
+/// and the BVH agree bit for bit.
+#[test]
+fn long_opaque_cones_enter_the_bvh_halved() {
+    let mut r = Rng(77);
+    let mut objects = Vec::new();
+    let mut long_opaque = 0;
+    for i in 0..240 {
+        let base = v(r.f() * 10.0 - 5.0, r.f() * 10.0 - 5.0, r.f() * 10.0 - 5.0);
+        let dir = v(r.f() - 0.5, r.f() - 0.5, r.f() - 0.5).normalize_or(v(0.0, 0.0, 1.0));
+        // Lengths 0.3 (short: under 4 radii) and 2.0; materials matte,
+        // mirror, glass, glass.
+        let len = if i % 3 == 0 { 0.3 } else { 2.0 };
+        let material = (i % 4) as u32;
+        if len > 1.0 && material < 2 {
+            long_opaque += 1;
+        }
+        objects.push(Object {
+            shape: Shape::Cone {
+                base,
+                base_radius: 0.1,
+                apex: base + dir * len,
+                apex_radius: if i % 2 == 0 { 0.1 } else { 0.05 },
+            },
+            material,
+        });
+    }
+    let s = common::random_scene_frame(48, 36, [DVec3::splat(0.5), DVec3::splat(0.25)], objects);
+    let pb = pack_with(&s, Accel::Bvh);
+    let pg = pack_with(&s, Accel::Grid);
+    assert!(long_opaque > 50);
+    assert_eq!(pg.globals.counts[0], 240);
+    assert_eq!(pb.globals.counts[0] as usize, 240 + long_opaque);
+    // Every primitive of the grid's packing is in the BVH's, a long
+    // opaque cone twice, with its rank.
+    for (i, g) in pg.prims[..240].iter().enumerate() {
+        let copies = pb
+            .prims
+            .iter()
+            .filter(|b| b.cell_lo == i as u32)
+            .collect::<Vec<_>>();
+        let halved = g.kind_mat >> 4 < 2 && g.c[0] > 1.0;
+        assert_eq!(copies.len(), if halved { 2 } else { 1 }, "primitive {i}");
+        for c in copies {
+            assert_eq!((c.kind_mat, c.a, c.b, c.c), (g.kind_mat, g.a, g.b, g.c));
+        }
+    }
+    let mut r = Rng(78);
+    let rays: Vec<RaySpec> = (0..3000)
+        .map(|_| {
+            let f = |r: &mut Rng, k: f64| (r.f() * 2.0 - 1.0) as f32 * k as f32;
+            (
+                [f(&mut r, 8.0), f(&mut r, 8.0), f(&mut r, 8.0)],
+                [f(&mut r, 1.0), f(&mut r, 1.0), f(&mut r, 1.0)],
+                (r.f() * 20.0) as f32 + 0.1,
+            )
+        })
+        .collect();
+    check_against_brute(&pb, &rays).unwrap();
+    let gi = whitted::cpu::render(&pg, &|_, _| {});
+    let bi = whitted::cpu::render(&pb, &|_, _| {});
+    assert!(
+        gi.pixels == bi.pixels,
+        "the grid and the BVH render differently"
+    );
+}
+
 /// `random_scene` with every other primitive listed again in the next
 /// material: coincident surfaces, every hit on them a tie.
 fn scene_with_copies(seed: u64, count: usize, clustered: bool) -> Scene {
@@ -381,9 +454,14 @@ fn ties_go_to_the_same_primitive_on_every_structure() {
                 key(g),
                 key(closest_hit_brute(&sg, &ray, &pre, f32::INFINITY))
             );
+            // (Under the BVH, the same primitive up to the copy: a halved
+            // cone is two, `pack::bvh_pieces`.)
+            let prim_b = |h: Option<(whitted::trace::intersect::Hit<f32>, u32)>| {
+                h.map(|h| (h.0.t, pb.prims[h.1 as usize]))
+            };
             assert_eq!(
-                key(b),
-                key(closest_hit_brute(&sb, &ray, &pre, f32::INFINITY))
+                prim_b(b),
+                prim_b(closest_hit_brute(&sb, &ray, &pre, f32::INFINITY))
             );
             // Across packings (the BVH reorders), the same distance and
             // the same primitive: its rank and its material.

@@ -20,7 +20,7 @@ use whitted::cpu::render_packets;
 use whitted::pack::{self, Accel, Packed, Sampling, Settings};
 use whitted::scene::{Material, Object, Scene, Shape};
 use whitted::trace::accel::{closest_hit, transmittance};
-use whitted::trace::intersect::RayPre;
+use whitted::trace::intersect::{Hit, RayPre};
 use whitted::trace::math::{v3, Ray, V3};
 use whitted::trace::packet::{closest_hit_packet, transmittance_packet};
 use whitted::trace::query::Work;
@@ -191,7 +191,9 @@ fn check_packet<const P: usize>(p: &Packed, spec: &[Lane], live: u32) -> Result<
     let hits = closest_hit_packet(&s, &rays, &pres, f32::INFINITY, &mut work);
     for j in 0..P {
         let alone = closest_hit(&s, &rays[j], &pres[j], f32::INFINITY, &mut Work::default());
-        prop_assert_eq!(hits[j], alone, "lane {} of {}", j, P);
+        // Up to the copy of a halved cone (`pack::bvh_pieces`).
+        let same = |h: Option<(Hit<f32>, u32)>| h.map(|(h, i)| (h, p.prims[i as usize]));
+        prop_assert_eq!(same(hits[j]), same(alone), "lane {} of {}", j, P);
     }
     for light in [0, 1, usize::MAX] {
         let mut work = Work::default();
@@ -392,7 +394,14 @@ fn eye_packets<const P: usize>(p: &Packed) -> (Work, Work) {
             let hits = closest_hit_packet(&s, &rays, &pres, f32::INFINITY, &mut packed);
             for j in 0..P {
                 let one = closest_hit(&s, &rays[j], &pres[j], f32::INFINITY, &mut alone);
-                assert_eq!(hits[j], one, "pixel block ({bx}, {by}) lane {j}");
+                // The same primitive up to the copy: a long opaque cone is
+                // two identical ones in the BVH (`pack::bvh_pieces`).
+                let same = |h: Option<(Hit<f32>, u32)>| h.map(|(h, i)| (h, p.prims[i as usize]));
+                assert_eq!(
+                    same(hits[j]),
+                    same(one),
+                    "pixel block ({bx}, {by}) lane {j}"
+                );
                 if let Some((_, i)) = one {
                     triangles +=
                         (p.prims[i as usize].kind() == whitted::constants::KIND_TRIANGLE) as u32;

@@ -24,7 +24,8 @@
 //! lower rank) or a feeler's light (what multiplies it is every blocker
 //! the feeler meets, in the tree's depth-first lane order, which the
 //! packet keeps). Answers are bit for bit each ray's alone
-//! (tests/packets.rs).
+//! (tests/packets.rs; of a long opaque cone's two copies in the BVH,
+//! `pack::bvh_pieces`, either may be the one named).
 //!
 //! A packet whose rays do not share each axis's direction sign, or with a
 //! non-finite origin or inverse direction, walks ray by ray instead, as do
