@@ -710,3 +710,46 @@ fn stats_report_the_hybrids_nested_cells() {
     assert!(refs > 2 * cells, "{cells} cells, {refs} refs");
     assert_eq!(stats_of(&["--accel", "grid"]), (0, 0));
 }
+
+/// `--stats` counts the long opaque cones the BVH holds as two halves
+/// (`pack::bvh_pieces`): every cylinder of a ring of them under the BVH,
+/// none under the grid.
+#[test]
+fn stats_count_the_halved_cones() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("ring.nff");
+    let mut nff = String::from(
+        "v\nfrom 0 -10 2\nat 0 0 0\nup 0 0 1\nangle 40\nhither 1\nresolution 16 16\n\
+         l 5 -5 5\nf 1 0.2 0.2 0.8 0 30 0 0\n",
+    );
+    for k in 0..12 {
+        let step = std::f64::consts::FRAC_PI_6;
+        let (a, b) = (k as f64 * step, (k + 1) as f64 * step);
+        nff += &format!(
+            "c {} {} 0 0.05 {} {} 0 0.05\n",
+            2.0 * a.cos(),
+            2.0 * a.sin(),
+            2.0 * b.cos(),
+            2.0 * b.sin()
+        );
+    }
+    std::fs::write(&scene, nff).unwrap();
+    let halved = |accel: &str| {
+        let stats = dir.path().join(format!("{accel}.json"));
+        Command::cargo_bin("whitted")
+            .unwrap()
+            .args(["render", "-q", "--accel", accel])
+            .arg(&scene)
+            .arg("-o")
+            .arg(dir.path().join("o.png"))
+            .arg("--stats")
+            .arg(&stats)
+            .assert()
+            .success();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        j["accel"]["halved_cones"].as_u64().unwrap()
+    };
+    assert_eq!(halved("bvh"), 12);
+    assert_eq!(halved("grid"), 0);
+}

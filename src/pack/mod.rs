@@ -241,6 +241,9 @@ pub struct AccelInfo {
     /// own, and the references they list, now in those BVHs' leaves.
     pub hybrid_cells: u64,
     pub hybrid_refs: u64,
+    /// The BVH (0 otherwise): the long opaque cones built in as two
+    /// halves, each one primitive more (`bvh_pieces`).
+    pub halved_cones: u64,
 }
 
 /// What the grid build cost (all zero but `duplicates` when the BVH is
@@ -1103,6 +1106,8 @@ pub fn pack_with_progress(
     need.prims += halves as u64;
     need.bounded += halves as u64;
     let mut n_bounded = b.bounded.len() as u32;
+    // The unbounded primitives' ranks start here (`rank`).
+    let n_ranked = b.bounded.len();
     let mut prims: Vec<Prim> = Vec::with_capacity(b.bounded.len() + halves + b.unbounded.len());
     // The octree's shape (leaves, depth, most in a leaf), when built.
     let mut octree_shape = None;
@@ -1257,7 +1262,7 @@ pub fn pack_with_progress(
         // The planes and unbounded quadrics: their rank is their index
         // after the bounded primitives (giants, ranked after them, are
         // in the tree).
-        let n = n_bounded as usize - halves - taken;
+        let n = n_ranked;
         for (j, p) in prims.iter_mut().skip(n_bounded as usize).enumerate() {
             p.cell_lo = (n + j) as u32;
         }
@@ -1426,6 +1431,7 @@ pub fn pack_with_progress(
         max_leaf,
         hybrid_cells: nested_counts.0,
         hybrid_refs: nested_counts.1,
+        halved_cones: halves as u64,
     };
     let lightbuf = LightBufInfo {
         res: lb.res,
