@@ -588,10 +588,14 @@ impl Builder {
 pub const CONE_SPLIT_RATIO: f64 = 4.0;
 
 /// The cones `bvh_pieces` halves: opaque, and long for their radius.
+/// (A length that rounded to 0 or overflowed in f32 stays whole.)
 fn splits(p: &Prim, opaque: &[bool]) -> bool {
+    let len = p.c[0];
     p.kind() == KIND_CONE
         && opaque.get(p.material() as usize) == Some(&true)
-        && p.c[0] as f64 >= CONE_SPLIT_RATIO * p.a[3].max(p.b[3]) as f64
+        && len > 0.0
+        && len.is_finite()
+        && len as f64 >= CONE_SPLIT_RATIO * p.a[3].max(p.b[3]) as f64
 }
 
 /// The BVH's build items where they are not the primitives one for one
