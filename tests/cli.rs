@@ -185,19 +185,28 @@ fn exr_and_linear_png_keep_linear_values() {
 fn corner_sampling_renders() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write(dir.path(), "s.toml", SCENE);
-    let stats = dir.path().join("st.json");
+    let j = render_stats(
+        dir.path(),
+        &scene,
+        &["render", "-q", "--sampling", "corners"],
+    );
+    assert_eq!(j["rays"]["eye"], 33 * 25);
+}
+
+/// Runs `whitted ARGS SCENE -o DIR/o.png --stats DIR/s.json`, expects
+/// success; the statistics.
+fn render_stats(dir: &Path, scene: &Path, args: &[&str]) -> serde_json::Value {
+    let stats = dir.join("s.json");
     whitted()
-        .args(["render", "-q", "--sampling", "corners"])
-        .arg(&scene)
+        .args(args)
+        .arg(scene)
         .arg("-o")
-        .arg(dir.path().join("c.png"))
+        .arg(dir.join("o.png"))
         .arg("--stats")
         .arg(&stats)
         .assert()
         .success();
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
-    assert_eq!(j["rays"]["eye"], 33 * 25);
+    serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap()
 }
 
 /// Renders `scene` with `flag bogus` to `dir/x.png`, expects exit code 2;
@@ -679,29 +688,18 @@ fn stats_report_the_hybrids_nested_cells() {
         .assert()
         .success();
     let stats_of = |extra: &[&str]| {
-        let stats = dir.path().join("s.json");
-        Command::cargo_bin("whitted")
-            .unwrap()
-            .args([
-                "-q",
-                "render",
-                "--backend",
-                "cpu",
-                "--width",
-                "16",
-                "--height",
-                "16",
-            ])
-            .args(extra)
-            .arg(&scene)
-            .arg("-o")
-            .arg(dir.path().join("o.png"))
-            .arg("--stats")
-            .arg(&stats)
-            .assert()
-            .success();
-        let j: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let mut args = vec![
+            "-q",
+            "render",
+            "--backend",
+            "cpu",
+            "--width",
+            "16",
+            "--height",
+            "16",
+        ];
+        args.extend_from_slice(extra);
+        let j = render_stats(dir.path(), &scene, &args);
         let n = |k: &str| j["accel"][k].as_u64().unwrap();
         (n("hybrid_cells"), n("hybrid_refs"))
     };
@@ -735,19 +733,7 @@ fn stats_count_the_halved_cones() {
     }
     std::fs::write(&scene, nff).unwrap();
     let halved = |accel: &str| {
-        let stats = dir.path().join(format!("{accel}.json"));
-        Command::cargo_bin("whitted")
-            .unwrap()
-            .args(["render", "-q", "--accel", accel])
-            .arg(&scene)
-            .arg("-o")
-            .arg(dir.path().join("o.png"))
-            .arg("--stats")
-            .arg(&stats)
-            .assert()
-            .success();
-        let j: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let j = render_stats(dir.path(), &scene, &["render", "-q", "--accel", accel]);
         j["accel"]["halved_cones"].as_u64().unwrap()
     };
     assert_eq!(halved("bvh"), 12);
