@@ -568,9 +568,7 @@ impl Builder {
                     1.0
                 };
                 let (r0, r1) = (base_radius.abs(), apex_radius.abs());
-                // Bounds of the two end discs.
-                let ext = |r: f64| disc_extent(axis, r);
-                let bb = Self::points_bounds(&[b - ext(r0), b + ext(r0), a - ext(r1), a + ext(r1)]);
+                let bb = discs_bounds(axis, b, r0, a, r1);
                 self.push_bounded(
                     KIND_CONE,
                     mat,
@@ -625,20 +623,8 @@ fn bvh_pieces(bounded: &[(Prim, Bounds)], opaque: &[bool], bounds: &mut Vec<Boun
         let axis = DVec3::new(p.b[0] as f64, p.b[1] as f64, p.b[2] as f64);
         let (r0, r1, len) = (p.a[3] as f64, p.b[3] as f64, p.c[0] as f64);
         let half = |s0: f64, s1: f64| {
-            let disc = |s: f64| {
-                let r = r0 + (r1 - r0) * s / len;
-                let c = base + axis * s;
-                let e = disc_extent(axis, r);
-                [c - e, c + e]
-            };
-            let mut bb = Bounds::EMPTY;
-            for q in disc(s0).into_iter().chain(disc(s1)) {
-                bb = bb.union(&Bounds {
-                    lo: q.to_array(),
-                    hi: q.to_array(),
-                });
-            }
-            bb
+            let r = |s: f64| r0 + (r1 - r0) * s / len;
+            discs_bounds(axis, base + axis * s0, r(s0), base + axis * s1, r(s1))
         };
         let overlap = 1e-3 * len;
         bounds[i] = half(0.0, 0.5 * len + overlap);
@@ -648,14 +634,14 @@ fn bvh_pieces(bounded: &[(Prim, Bounds)], opaque: &[bool], bounds: &mut Vec<Boun
     piece_of
 }
 
-/// Half the extent, per axis, of the box of a disc of radius `r` whose
-/// normal is the unit vector `axis`.
-fn disc_extent(axis: DVec3, r: f64) -> DVec3 {
-    DVec3::new(
-        r * (1.0 - axis.x * axis.x).max(0.0).sqrt(),
-        r * (1.0 - axis.y * axis.y).max(0.0).sqrt(),
-        r * (1.0 - axis.z * axis.z).max(0.0).sqrt(),
-    )
+/// The box of a cone's stretch between its discs centred at `p` (radius
+/// `rp`) and `q` (radius `rq`), whose normal is the unit vector `axis`:
+/// the box of the two discs (each reaching r·√(1 − axis_i²) along axis i).
+fn discs_bounds(axis: DVec3, p: DVec3, rp: f64, q: DVec3, rq: f64) -> Bounds {
+    let reach = (DVec3::ONE - axis * axis).max(DVec3::ZERO);
+    let ext = |r: f64| DVec3::new(r * reach.x.sqrt(), r * reach.y.sqrt(), r * reach.z.sqrt());
+    let (ep, eq) = (ext(rp), ext(rq));
+    Builder::points_bounds(&[p - ep, p + ep, q - eq, q + eq])
 }
 
 /// Most primitives kept out of the grid for being as large as the scene.
