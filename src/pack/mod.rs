@@ -1131,7 +1131,7 @@ pub fn pack_with_progress(
         // primitives, then the unbounded ones, giants last) in `cell_lo`
         // for ties (`trace::query::rank`); a halved cone's two copies
         // share theirs.
-        let n = b.bounded.len();
+        let n = n_ranked;
         for &e in &tree.order {
             let i = piece_of[e as usize] as usize;
             let (mut p, rank) = if i < n {
