@@ -5,8 +5,10 @@
 //! are sorted into `BINS` equal bins on each axis, and the split between
 //! two bins that minimises `TRAVERSAL_COST` + (A_L·N_L + A_R·N_R)/A is
 //! taken, or a leaf is made when that is no cheaper than testing the
-//! node's `N` primitives (at most `MAX_LEAF` of them). Subtrees of at
-//! least `PARALLEL_MIN` primitives are built in parallel (rayon).
+//! node's `N` primitives (at most `MAX_LEAF` of them); in a tree of at
+//! least `LARGE_TREE` primitives a node of at most `LARGE_LEAF` is a
+//! leaf without asking. Subtrees of at least `PARALLEL_MIN` primitives
+//! are built in parallel (rayon).
 //!
 //! Every primitive is in exactly one leaf and a leaf is a contiguous run
 //! of primitives: `Bvh::order` is the order the packed primitives take.
@@ -47,6 +49,22 @@ pub const MAX_LEAF: usize = 8;
 /// instructions (callgrind, 128², `--preset spd`), the other SPD scenes
 /// within 1 % either way.
 pub const TRAVERSAL_COST: f64 = 0.5;
+/// A tree over at least this many primitives makes every node of at
+/// most `LARGE_LEAF` primitives a leaf without asking the heuristic.
+/// Such a tree's nodes and primitives (about 60 + 64 bytes each for
+/// spheres) outgrow a large last-level cache (32 MB), and its walks
+/// wait on memory more than they compute: SPD sphereflake level 6
+/// (598 k spheres) takes 8 % more instructions per ray than level 3
+/// (821) but 2.6 times the time per ray (callgrind and one-thread
+/// renders, 2026-12-04). The heuristic, which counts a node visit as
+/// half a primitive test, split that tree down to one sphere a leaf
+/// (280 k nodes, 36 MB); leaves of up to four leave 96 k nodes (12 MB)
+/// and take 10 % off its render, 15 % off its build; below the size
+/// they cost time (gears +17 %, rings +10 % in cache), so smaller trees
+/// keep the heuristic's leaves (BENCHMARKS.md, "Leaves of large trees").
+pub const LARGE_TREE: usize = 1 << 18;
+/// See `LARGE_TREE`.
+pub const LARGE_LEAF: usize = 4;
 /// Subtrees of at least this many primitives are built in parallel.
 pub const PARALLEL_MIN: usize = 4096;
 /// Padding of each primitive's bounds: this share of its diagonal ...
@@ -245,6 +263,7 @@ pub fn build(bounds: &[Bounds], progress: Progress) -> Bvh {
     let ctx = Ctx {
         done: AtomicU64::new(0),
         total: n as u64,
+        min_leaf: if n >= LARGE_TREE { LARGE_LEAF } else { 1 },
         progress,
     };
     // Every interior node's slot, allotted before the build (see
@@ -368,6 +387,9 @@ fn wide_node(
 struct Ctx<'a> {
     done: AtomicU64,
     total: u64,
+    /// Nodes of at most this many primitives are leaves whatever the
+    /// heuristic says (`LARGE_LEAF` in a large tree, else 1).
+    min_leaf: usize,
     progress: Progress<'a>,
 }
 
@@ -429,7 +451,7 @@ fn build_rec(
             count: n as u32,
         }
     };
-    if n == 1 {
+    if n <= ctx.min_leaf {
         return leaf(shape);
     }
     // The heuristic while the depth allows it (module docs), else the median.
@@ -841,6 +863,38 @@ mod tests {
         let bvh = build(&b, &|_, _, _| {});
         check(&bvh, &b);
         assert!(bvh.depth < BVH_STACK_SIZE);
+    }
+
+    /// Spheres far apart on a lattice: the heuristic gives each its own
+    /// leaf, until the tree is large (`LARGE_TREE`), where nodes of up to
+    /// `LARGE_LEAF` primitives stay leaves.
+    #[test]
+    fn large_trees_keep_small_nodes_as_leaves() {
+        let lattice = |n: usize| {
+            let pts: Vec<_> = (0..n)
+                .map(|i| {
+                    (
+                        [(i % 64) as f64, (i / 64 % 64) as f64, (i / 4096) as f64],
+                        0.01,
+                    )
+                })
+                .collect();
+            bounds_of(&pts)
+        };
+        let n = LARGE_TREE - 1;
+        let small = build(&lattice(n), &|_, _, _| {});
+        assert_eq!(small.leaves as usize, n, "one sphere a leaf");
+        assert_eq!(small.max_leaf, 1);
+        let b = lattice(LARGE_TREE);
+        let large = build(&b, &|_, _, _| {});
+        check(&large, &b);
+        assert_eq!(large.max_leaf as usize, LARGE_LEAF);
+        assert!(
+            (large.leaves as usize) < LARGE_TREE / 2,
+            "{} leaves",
+            large.leaves
+        );
+        assert!(large.node_count() * 2 < small.node_count());
     }
 
     /// Two clusters far apart: the root separates them, whatever the
