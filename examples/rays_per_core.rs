@@ -6,7 +6,7 @@
 //! rays): every eye ray's closest hit, then from each eye hit one shadow
 //! feeler per light (from the hit point backed off along the ray by 10⁻⁴
 //! of its distance, to the light), on one thread, through the structure
-//! `auto` picks. The feelers keep the tracer's last-blocker cache (it is
+//! `auto` picks (or `--accel NAME`). The feelers keep the tracer's last-blocker cache (it is
 //! part of the method); the eye rays have no seed. Best of `--repeat`
 //! (default 5) passes each. With `--rays FILE` it writes the rays in world
 //! coordinates for the script: a little-endian header of two u64 counts
@@ -34,7 +34,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let path = args
         .first()
-        .expect("usage: rays_per_core SCENE [--rays FILE] [--repeat N]");
+        .expect("usage: rays_per_core SCENE [--rays FILE] [--repeat N] [--packet 4|8] [--accel NAME]");
     let after = |flag: &str| {
         args.iter()
             .position(|a| a == flag)
@@ -42,7 +42,11 @@ fn main() {
     };
     let repeat: usize = after("--repeat").map_or(5, |n| n.parse().expect("--repeat N"));
     let scene = whitted::scene::load(std::path::Path::new(path)).unwrap_or_else(|e| panic!("{e}"));
-    let p = pack::pack(&scene, &Preset::Spd.settings()).expect("the scene packs");
+    let mut settings = Preset::Spd.settings();
+    if let Some(a) = after("--accel") {
+        settings.accel = clap::ValueEnum::from_str(a, true).expect("--accel grid|bvh|octree|hybrid|auto");
+    }
+    let p = pack::pack(&scene, &settings).expect("the scene packs");
     let s = SceneView::new(&p);
     let g = &p.globals;
     let (w, h) = (g.image[0], g.image[1]);
