@@ -32,9 +32,9 @@ use whitted::trace::SceneView;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let path = args
-        .first()
-        .expect("usage: rays_per_core SCENE [--rays FILE] [--repeat N] [--packet 4|8] [--accel NAME]");
+    let path = args.first().expect(
+        "usage: rays_per_core SCENE [--rays FILE] [--repeat N] [--packet 4|8] [--accel NAME]",
+    );
     let after = |flag: &str| {
         args.iter()
             .position(|a| a == flag)
@@ -44,7 +44,8 @@ fn main() {
     let scene = whitted::scene::load(std::path::Path::new(path)).unwrap_or_else(|e| panic!("{e}"));
     let mut settings = Preset::Spd.settings();
     if let Some(a) = after("--accel") {
-        settings.accel = clap::ValueEnum::from_str(a, true).expect("--accel grid|bvh|octree|hybrid|auto");
+        settings.accel =
+            clap::ValueEnum::from_str(a, true).expect("--accel grid|bvh|octree|hybrid|auto");
     }
     let p = pack::pack(&scene, &settings).expect("the scene packs");
     let s = SceneView::new(&p);

@@ -20,6 +20,7 @@
 
 use super::layout::{cell_pack, cell_unpack};
 use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, SKIP_MAX};
+use rayon::prelude::*;
 
 /// Most references a grid may hold: `cell_start` holds u32 offsets (the
 /// shader's arrays are indexed in 32 bits).
@@ -104,6 +105,8 @@ pub type Progress<'a> = &'a (dyn Fn(Stage, u64, u64) + Sync);
 
 /// Primitives between two progress reports.
 const PROGRESS_EVERY: usize = 1 << 16;
+/// Primitives a parallel task of the counting pass takes at a time.
+const PARALLEL_CHUNK: usize = 1 << 12;
 
 /// Why no grid could be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -208,7 +211,9 @@ impl Layout {
 
     /// The counting pass: every primitive's cell range into `ranges`, and
     /// the references they make, exact in 64 bits. Stops early with `None`
-    /// once the count passes `cap` (then `ranges` is incomplete).
+    /// once the count passes `cap` (then `ranges` is incomplete). Each
+    /// stretch of `PROGRESS_EVERY` primitives is counted in parallel
+    /// (rayon), and reported once done, so progress only grows.
     fn count(
         &self,
         bounds: &[Bounds],
@@ -217,15 +222,28 @@ impl Layout {
         progress: Progress,
     ) -> Option<u64> {
         ranges.clear();
+        ranges.resize(bounds.len(), (0, 0));
         let n = bounds.len() as u64;
         let mut refs = 0u64;
-        for (k, chunk) in bounds.chunks(PROGRESS_EVERY).enumerate() {
+        for (k, (bc, rc)) in bounds
+            .chunks(PROGRESS_EVERY)
+            .zip(ranges.chunks_mut(PROGRESS_EVERY))
+            .enumerate()
+        {
             progress(Stage::Count, (k * PROGRESS_EVERY) as u64, n);
-            for b in chunk {
-                let r = self.range(b);
-                refs = refs.saturating_add(refs_of(r));
-                ranges.push(r);
-            }
+            let made = bc
+                .par_chunks(PARALLEL_CHUNK)
+                .zip(rc.par_chunks_mut(PARALLEL_CHUNK))
+                .map(|(b, r)| {
+                    let mut made = 0u64;
+                    for (b, r) in b.iter().zip(r) {
+                        *r = self.range(b);
+                        made = made.saturating_add(refs_of(*r));
+                    }
+                    made
+                })
+                .reduce(|| 0, u64::saturating_add);
+            refs = refs.saturating_add(made);
             if refs > cap {
                 return None;
             }
@@ -362,46 +380,93 @@ fn choose(
 /// The filing pass: the counting sort into `cell_start`/`refs` (at most
 /// `MAX_REFS`, so the 32-bit counts cannot wrap), then the empty-space
 /// distances.
+///
+/// In parallel by slabs of cells along z, one per thread (rayon): a
+/// slab's cells are a contiguous run of `cell_start`, and so of `refs`,
+/// so each thread counts and files the parts of every primitive's range
+/// that lie in its slab, into its own slices, in primitive order: the
+/// lists are those of a serial filing, bit for bit, whatever the threads.
+/// Every slab reads every range (a z test for most): two reads of 8
+/// bytes per primitive and thread against the filing's writes.
 fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progress) -> Grid {
     let dims = l.dims;
     let ncells = cells_of(dims) as usize;
     // Progress runs over both loops: 0..n counting, n..2n filing.
     let n = bounds.len() as u64;
-    // The offsets, then the distances four to a word: allocated once.
-    let mut counts = Vec::with_capacity(ncells + 1 + ncells.div_ceil(4));
-    counts.resize(ncells + 1, 0u32);
-    let for_cells = |r: &(u32, u32), f: &mut dyn FnMut(usize)| {
+    let plane = dims[0] as usize * dims[1] as usize;
+    let nz = dims[2] as usize;
+    let slabs = rayon::current_num_threads().clamp(1, nz);
+    // Slab s holds the cells of z in z0[s]..z0[s + 1].
+    let z0: Vec<usize> = (0..=slabs).map(|s| s * nz / slabs).collect();
+    let cell_sizes: Vec<usize> = z0.windows(2).map(|w| (w[1] - w[0]) * plane).collect();
+    // The part of range `r` in slab `s`, as (first z, last z), if any.
+    let in_slab = |r: &(u32, u32), s: usize| -> Option<(u32, u32)> {
+        let lz = (r.0 >> 20) & 1023;
+        let hz = (r.1 >> 20) & 1023;
+        let a = lz.max(z0[s] as u32);
+        let b = hz.min(z0[s + 1] as u32 - 1);
+        (a <= b).then_some((a, b))
+    };
+    // Calls `f` with each cell of range `r` in z..=z1, as an index from
+    // the first cell of slab `s`.
+    let for_cells = |r: &(u32, u32), s: usize, (za, zb): (u32, u32), f: &mut dyn FnMut(usize)| {
         let l = cell_unpack(r.0);
         let h = cell_unpack(r.1);
-        for z in l[2]..=h[2] {
+        let base = z0[s] * plane;
+        for z in za..=zb {
             for y in l[1]..=h[1] {
-                let row = (y as usize + dims[1] as usize * z as usize) * dims[0] as usize;
+                let row = (y as usize + dims[1] as usize * z as usize) * dims[0] as usize - base;
                 for x in l[0]..=h[0] {
                     f(row + x as usize);
                 }
             }
         }
     };
+    // The offsets, then the distances four to a word: allocated once.
+    let mut counts = Vec::with_capacity(ncells + 1 + ncells.div_ceil(4));
+    counts.resize(ncells + 1, 0u32);
     for (k, chunk) in ranges.chunks(PROGRESS_EVERY).enumerate() {
         progress(Stage::File, (k * PROGRESS_EVERY) as u64, 2 * n);
-        for r in chunk {
-            for_cells(r, &mut |c| counts[c + 1] += 1);
-        }
+        split_sizes(&mut counts[1..], &cell_sizes)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(s, mine)| {
+                for r in chunk {
+                    if let Some(zs) = in_slab(r, s) {
+                        for_cells(r, s, zs, &mut |c| mine[c] += 1);
+                    }
+                }
+            });
     }
     for i in 0..ncells {
         counts[i + 1] += counts[i];
     }
     let mut fill = counts.clone();
     let mut refs = vec![0u32; counts[ncells] as usize];
+    let ref_sizes: Vec<usize> = z0
+        .windows(2)
+        .map(|w| (counts[w[1] * plane] - counts[w[0] * plane]) as usize)
+        .collect();
     for (k, chunk) in ranges.chunks(PROGRESS_EVERY).enumerate() {
         progress(Stage::File, n + (k * PROGRESS_EVERY) as u64, 2 * n);
-        for (j, r) in chunk.iter().enumerate() {
-            let p = (k * PROGRESS_EVERY + j) as u32;
-            for_cells(r, &mut |c| {
-                refs[fill[c] as usize] = p;
-                fill[c] += 1;
+        let first = (k * PROGRESS_EVERY) as u32;
+        split_sizes(&mut fill[..ncells], &cell_sizes)
+            .into_par_iter()
+            .zip(split_sizes(&mut refs, &ref_sizes))
+            .enumerate()
+            .for_each(|(s, (next, mine))| {
+                // `fill` holds offsets into the whole of `refs`.
+                let base = counts[z0[s] * plane];
+                for (j, r) in chunk.iter().enumerate() {
+                    if let Some(zs) = in_slab(r, s) {
+                        let p = first + j as u32;
+                        for_cells(r, s, zs, &mut |c| {
+                            mine[(next[c] - base) as usize] = p;
+                            next[c] += 1;
+                        });
+                    }
+                }
             });
-        }
     }
     progress(Stage::File, 2 * n, 2 * n);
     drop(fill);
@@ -421,6 +486,18 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
         cell_start,
         refs,
     }
+}
+
+/// `v` cut into consecutive slices of the given lengths (which sum to at
+/// most its length).
+fn split_sizes<'a, T>(mut v: &'a mut [T], sizes: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(sizes.len());
+    for &k in sizes {
+        let (a, b) = std::mem::take(&mut v).split_at_mut(k);
+        out.push(a);
+        v = b;
+    }
+    out
 }
 
 /// Empty-space distances ("proximity clouds", Cohen & Sheffer 1994): for
@@ -581,6 +658,10 @@ mod tests {
                 (c / (nx * ny)) as u32,
             );
             let list = &g.refs[g.cell_start[c] as usize..g.cell_start[c + 1] as usize];
+            assert!(
+                list.windows(2).all(|w| w[0] < w[1]),
+                "cell {c}: a list in primitive order"
+            );
             for &p in list {
                 let (l, h) = (
                     cell_unpack(g.ranges[p as usize].0),
@@ -782,6 +863,31 @@ mod tests {
         let r = build(&b, None, &|_| 4999, &|_, _, _| {}).unwrap_err();
         assert_eq!((r.dims, r.refs), ([1, 1, 1], 5000));
         assert!(build(&b, None, &|_| 5000, &|_, _, _| {}).is_ok());
+    }
+
+    /// The parallel passes give the serial grid: the same lists in the
+    /// same order whatever the threads (slabs of 1, 3 and 7 along z,
+    /// several progress stretches), each list in primitive order.
+    #[test]
+    fn the_grid_is_the_same_on_any_number_of_threads() {
+        let b = scattered(150_000);
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| build(&b, None, &|_| u64::MAX, &|_, _, _| {}).unwrap())
+        };
+        let one = on(1);
+        assert!(one.dims[2] >= 7);
+        assert_filed(&one, b.len());
+        for t in [3, 7] {
+            let g = on(t);
+            assert_eq!(g.dims, one.dims);
+            assert_eq!(g.ranges, one.ranges, "{t} threads");
+            assert_eq!(g.cell_start, one.cell_start, "{t} threads");
+            assert_eq!(g.refs, one.refs, "{t} threads");
+        }
     }
 
     #[test]
