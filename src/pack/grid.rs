@@ -401,14 +401,12 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
     let cell_sizes: Vec<usize> = z0.windows(2).map(|w| (w[1] - w[0]) * plane).collect();
     // The part of range `r` in slab `s`, as (first z, last z), if any.
     let in_slab = |r: &(u32, u32), s: usize| -> Option<(u32, u32)> {
-        let lz = (r.0 >> 20) & 1023;
-        let hz = (r.1 >> 20) & 1023;
-        let a = lz.max(z0[s] as u32);
-        let b = hz.min(z0[s + 1] as u32 - 1);
+        let a = cell_unpack(r.0)[2].max(z0[s] as u32);
+        let b = cell_unpack(r.1)[2].min(z0[s + 1] as u32 - 1);
         (a <= b).then_some((a, b))
     };
-    // Calls `f` with each cell of range `r` in z..=z1, as an index from
-    // the first cell of slab `s`.
+    // Calls `f` with each cell of range `r` whose z is in za..=zb (within
+    // slab `s`), as an index from the slab's first cell.
     let for_cells = |r: &(u32, u32), s: usize, (za, zb): (u32, u32), f: &mut dyn FnMut(usize)| {
         let l = cell_unpack(r.0);
         let h = cell_unpack(r.1);
