@@ -164,3 +164,17 @@ fn a_subnormal_camera_up() {
     assert!(m.starts_with("fuzz.toml:4:6: camera.up"), "{m}");
     assert!(m.contains("1.25e-321"), "{m}");
 }
+
+/// pack: eye rays in packets changed the image (the target checks them
+/// against single rays bit for bit). A feeler from a hit on an unbounded
+/// plane 10^12 away passed 441 units from a sphere of radius 25; the
+/// shadow cache's direct test of that sphere, in f32, reported a hit
+/// through cancellation where the BVH walk culls the sphere by its
+/// boxes, so a pixel depended on which feeler had gone before. Under the
+/// BVH the cache now answers only where the walk would test its blocker
+/// (`bvh::bvh_leaf_admits`): the input renders, packets and all.
+#[test]
+fn a_cached_blocker_far_from_the_feeler() {
+    let o = finding("pack", "shadow-cache-far-feeler.bin");
+    assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
+}

@@ -5,7 +5,7 @@
 //! (`bvh.rs`) or the octree (`octree.rs`), one traversal each serving
 //! both queries (`query.rs`).
 
-use super::bvh::bvh_traverse;
+use super::bvh::{bvh_leaf_admits, bvh_traverse};
 use super::grid::grid_traverse;
 use super::intersect::{intersect, Hit, RayPre};
 use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
@@ -74,7 +74,7 @@ pub fn transmittance<F: Real>(
     } else {
         0
     };
-    if cached != 0 {
+    if cached != 0 && cache_admits(s, cached - 1, *work.cached_leaf(light), ray, pre, dist) {
         work.tests += 1;
         if intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist).is_some() {
             return V3::zero();
@@ -97,6 +97,27 @@ pub fn transmittance<F: Real>(
     } else {
         q.trans
     }
+}
+
+/// Whether the shadow cache may answer for its blocker, primitive `i`
+/// (found in BVH leaf `leaf`, `Work::shadow_leaf`), for this feeler: it
+/// must not find a blocker the walk would not test. Every walk tests the
+/// unbounded primitives; under the BVH a bounded one only if the feeler
+/// enters its leaf (`bvh::bvh_leaf_admits`). (The grid, the octree and
+/// the hybrid answer as before: docs/method.md, "Shadow cache".)
+#[inline(always)]
+pub fn cache_admits<F: Real>(
+    s: &SceneView,
+    i: u32,
+    leaf: u32,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    dist: F,
+) -> bool {
+    let g = s.globals;
+    g.flags[1] != ACCEL_BVH
+        || (g.counts[0]..g.counts[1]).contains(&i)
+        || bvh_leaf_admits(s, leaf, ray, pre, dist)
 }
 
 /// Brute force over every primitive, no structure: the reference the

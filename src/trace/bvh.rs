@@ -15,7 +15,7 @@ use super::intersect::RayPre;
 use super::math::{Ray, Real};
 use super::query::{query_prim, Query, Work};
 use super::SceneView;
-use crate::constants::{BVH_EXIT_WIDEN, BVH_STACK_SIZE, BVH_WIDTH};
+use crate::constants::{BVH_EXIT_WIDEN, BVH_STACK_SIZE, BVH_WIDTH, SHADOW_CACHE_LIGHTS};
 use crate::pack::layout::BvhNode;
 
 const W: usize = BVH_WIDTH as usize;
@@ -110,9 +110,11 @@ pub fn bvh_walk<F: Real>(
     let mut stack_slot = [0u32; BVH_STACK_SIZE as usize];
     let mut stack_t = [F::zero(); BVH_STACK_SIZE as usize];
     let mut sp = 0usize;
-    // The current child: the root first.
+    // The current child: the root first; `slot`: 1 + its node · W +
+    // lane (0 for the root), which names a leaf to the shadow cache.
     let mut link = root;
     let mut count = 0u32;
+    let mut slot = 0u32;
     let mut t = F::zero();
     // Each child becomes the current one at most once, so a walk takes at
     // most BVH_WIDTH·nodes + 1 steps (the bound keeps a NaN ray finite).
@@ -126,6 +128,12 @@ pub fn bvh_walk<F: Real>(
                         continue;
                     };
                     if query_prim(s, q, &s.prims[i as usize], i, ray, pre, work) {
+                        if q.shadow
+                            && q.light < SHADOW_CACHE_LIGHTS as usize
+                            && *work.cached(q.light) == i + 1
+                        {
+                            *work.cached_leaf(q.light) = slot;
+                        }
                         return true;
                     }
                 }
@@ -138,6 +146,7 @@ pub fn bvh_walk<F: Real>(
                 if mask.is_power_of_two() {
                     // One child entered (the commonest case).
                     let k = mask.trailing_zeros() as usize;
+                    slot = 1 + link * BVH_WIDTH + k as u32;
                     count = node.count[k];
                     link = node.link[k];
                     t = te[k];
@@ -173,6 +182,7 @@ pub fn bvh_walk<F: Real>(
                         sp += 1;
                     }
                     let k = order[0];
+                    slot = 1 + link * BVH_WIDTH + k as u32;
                     count = node.count[k];
                     link = node.link[k];
                     t = te[k];
@@ -184,11 +194,40 @@ pub fn bvh_walk<F: Real>(
             return false;
         }
         sp -= 1;
-        let slot = stack_slot[sp] as usize;
-        let n = &s.bvh[slot / W];
-        link = n.link[slot % W];
-        count = n.count[slot % W];
+        slot = 1 + stack_slot[sp];
+        let at = stack_slot[sp] as usize;
+        let n = &s.bvh[at / W];
+        link = n.link[at % W];
+        count = n.count[at % W];
         t = stack_t[sp];
     }
     false
+}
+
+/// Whether the walk for a feeler (segment 0..`tmax`) would reach the
+/// leaf `slot` (1 + node · `BVH_WIDTH` + lane; 0: none): the rays the walk
+/// turns away never, else the leaf's box tested as the walk tests it.
+/// Every ancestor's box holds the leaf's in f32, and the slab arithmetic
+/// is monotone in the planes, so a feeler that enters the leaf's box
+/// enters theirs: the walk reaches the leaf and tests what it lists. The
+/// shadow cache asks this before it answers for a primitive of the BVH
+/// (`accel::transmittance`), so that it never finds a blocker the walk
+/// would not (an f32 test of a primitive far from the ray's origin may
+/// report a hit its boxes rule out).
+#[inline(always)]
+pub fn bvh_leaf_admits<F: Real>(
+    s: &SceneView,
+    slot: u32,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    tmax: F,
+) -> bool {
+    if slot == 0 || (0..3).any(|i| !ray.o.get(i).is_finite() || pre.inv_d.get(i).is_nan()) {
+        return false;
+    }
+    let at = (slot - 1) as usize;
+    match s.bvh.get(at / W) {
+        Some(node) => bvh_entries(node, ray, pre, tmax).1 & (1 << (at % W)) != 0,
+        None => false,
+    }
 }

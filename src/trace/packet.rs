@@ -35,7 +35,7 @@
 // form the compiler turns into vector instructions.
 #![allow(clippy::needless_range_loop)]
 
-use super::accel::{accel_traverse, transmittance};
+use super::accel::{accel_traverse, cache_admits, transmittance};
 use super::bvh::bvh_walk;
 use super::intersect::{intersect, Hit, RayPre};
 use super::math::{Ray, Real, V3};
@@ -591,7 +591,11 @@ pub fn transmittance_packet<F: Real, const P: usize>(
     };
     if cached != 0 {
         let prim = &s.prims[cached as usize - 1];
+        let leaf = *work.cached_leaf(light);
         for j in lanes(live) {
+            if !cache_admits(s, cached - 1, leaf, &rays[j], &pres[j], dist[j]) {
+                continue;
+            }
             work.tests += 1;
             if intersect(prim, s.extra, &rays[j], &pres[j], dist[j]).is_some() {
                 live &= !(1 << j);

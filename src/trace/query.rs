@@ -32,6 +32,11 @@ pub struct Work {
     /// never changes a result: an opaque blocker makes the transmittance
     /// exactly zero whatever else the feeler crosses.
     pub shadow_cache: [[u32; SHADOW_CACHE_LIGHTS as usize]; SHADOW_CACHE_LEVELS as usize],
+    /// Beside each cached blocker, the BVH leaf the walk met it in: 1 +
+    /// node · `BVH_WIDTH` + lane (0: none, e.g. an unbounded primitive).
+    /// Under the BVH the cache answers only where that leaf's box, tested
+    /// as the walk tests it, admits the feeler (`accel::transmittance`).
+    pub shadow_leaf: [[u32; SHADOW_CACHE_LIGHTS as usize]; SHADOW_CACHE_LEVELS as usize],
     /// The level of the ray tree whose cache feelers use now (the ray's
     /// depth, the deepest levels sharing the last: `Work::at_depth`).
     pub level: usize,
@@ -50,6 +55,12 @@ impl Work {
     #[inline(always)]
     pub fn cached(&mut self, light: usize) -> &mut u32 {
         &mut self.shadow_cache[self.level % SHADOW_CACHE_LEVELS as usize][light]
+    }
+
+    /// The leaf of the shadow cache's entry for `light` (`shadow_leaf`).
+    #[inline(always)]
+    pub fn cached_leaf(&mut self, light: usize) -> &mut u32 {
+        &mut self.shadow_leaf[self.level % SHADOW_CACHE_LEVELS as usize][light]
     }
 
     /// Adds `o`'s counters (not its cache).
@@ -186,6 +197,8 @@ pub fn query_hit<F: Real>(
         q.trans = q.trans.mul_elem(kt);
         if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
             *work.cached(q.light) = i + 1;
+            // The BVH's walk names the leaf (`bvh::bvh_walk`).
+            *work.cached_leaf(q.light) = 0;
         }
         if q.trans.max_elem() <= F::zero() {
             q.done = true;
