@@ -59,6 +59,20 @@ pub fn bvh_entries<F: Real>(n: &BvhNode, ray: &Ray<F>, pre: &RayPre<F>, tmax: F)
     (t0, mask)
 }
 
+/// A ray with a NaN, or from an infinite origin (∞ − ∞ is a NaN in the
+/// slabs), is the only kind that can enter an empty lane. It has no
+/// meaningful answer (from an infinite origin it meets no bounded
+/// primitive; a NaN compares false, so a box test may take it as inside
+/// a slab), and the grid's walk gives up on it too: the walk turns it
+/// away, so no lane needs checking (tests/accel.rs,
+/// `rays_from_non_finite_origins_end_and_meet_nothing`). The shader
+/// checks the lanes instead: a GPU compiler may assume no NaN. 1/d may
+/// be infinite.
+#[inline(always)]
+fn turned_away<F: Real>(ray: &Ray<F>, pre: &RayPre<F>) -> bool {
+    (0..3).any(|i| !ray.o.get(i).is_finite() || pre.inv_d.get(i).is_nan())
+}
+
 /// Walks the hierarchy for query `q`: every leaf whose box (and whose
 /// ancestors' boxes) the segment 0..`q.t` enters, nearer children first,
 /// until the query is done. The unbounded primitives are the caller's
@@ -94,16 +108,7 @@ pub fn bvh_walk<F: Real>(
     if nodes == 0 {
         return false;
     }
-    // A ray with a NaN, or from an infinite origin (∞ − ∞ is a NaN in the
-    // slabs), is the only kind that can enter an empty lane. It has no
-    // meaningful answer (from an infinite origin it meets no bounded
-    // primitive; a NaN compares false, so a box test may take it as
-    // inside a slab), and the grid's walk gives up on it too: turned away
-    // here, so no lane needs checking below (tests/accel.rs,
-    // `rays_from_non_finite_origins_end_and_meet_nothing`). The shader
-    // checks the lanes instead: a GPU compiler may assume no NaN. 1/d may
-    // be infinite.
-    if (0..3).any(|i| !ray.o.get(i).is_finite() || pre.inv_d.get(i).is_nan()) {
+    if turned_away(ray, pre) {
         return false;
     }
     // The pushed children: node · BVH_WIDTH + lane, and entry distances.
@@ -222,7 +227,7 @@ pub fn bvh_leaf_admits<F: Real>(
     pre: &RayPre<F>,
     tmax: F,
 ) -> bool {
-    if slot == 0 || (0..3).any(|i| !ray.o.get(i).is_finite() || pre.inv_d.get(i).is_nan()) {
+    if slot == 0 || turned_away(ray, pre) {
         return false;
     }
     let at = (slot - 1) as usize;
