@@ -41,6 +41,16 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
     return q.found;
 }
 
+// Whether the shadow cache may answer with primitive i (met in BVH leaf
+// `leaf`, shadow_leaf) for this feeler: it must not find a blocker the
+// walk would not test. Every walk tests the unbounded primitives; under
+// the BVH a bounded one only if the feeler enters its leaf
+// (bvh_leaf_admits). Twin of trace::accel::cache_admits.
+bool cache_admits(uint i, uint leaf, Ray ray, RayPre pre, float dist) {
+    return !uses_accel(ACCEL_BVH) || (i >= g.counts.x && i < g.counts.y) ||
+           bvh_leaf_admits(leaf, ray, pre, dist);
+}
+
 // Light reaching the end of a shadow feeler of length dist: every primitive
 // crossing it multiplies by its k_t (opaque ones give zero). Shadow feelers
 // are not refracted. `light` is the light the feeler goes to (>= the light
@@ -51,7 +61,8 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
 // structure instead.
 vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     uint cached = SHADOW_CACHE && light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
-    if (SHADOW_CACHE && cached != 0u) {
+    if (SHADOW_CACHE && cached != 0u &&
+        cache_admits(cached - 1u, shadow_leaf[shadow_slot(light)], ray, pre, dist)) {
         work_tests += 1u;
         Hit hc;
         if (intersect(load_prim(cached - 1u), ray, pre, dist, hc)) {

@@ -95,9 +95,11 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
     uint stack_slot[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     uint sp = 0u;
-    // The current child: the root first.
+    // The current child: the root first; slot: 1 + its node * BVH_WIDTH
+    // + lane (0 for the root), which names a leaf to the shadow cache.
     uint link = root;
     uint count = 0u;
+    uint slot = 0u;
     float t = 0.0;
     // Two phases a round, each its own loop (the "while-while" of Aila
     // & Laine, 2009): node visits until the current child is a leaf to
@@ -174,6 +176,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                     }
                     link = n.link[k0];
                     count = n.count[k0];
+                    slot = 1u + base + k0;
                     t = s0;
                     next = false;
                 }
@@ -186,6 +189,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                     break;
                 }
                 sp -= 1u;
+                slot = 1u + stack_slot[sp];
                 bvh_child(stack_slot[sp], link, count);
                 t = stack_t[sp];
             }
@@ -201,6 +205,10 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             Prim prim = load_prim(i);
             if (!(nested && listed_at(prim, prev_axis, prev_coord)) &&
                 query_prim_kinds(q, prim, i, ray, pre, BOUNDED_KINDS)) {
+                if (SHADOW_CACHE && q.shadow && q.light < SHADOW_CACHE_LIGHTS &&
+                    shadow_cache[shadow_slot(q.light)] == i + 1u) {
+                    shadow_leaf[shadow_slot(q.light)] = slot;
+                }
                 ended = true;
                 break;
             }
@@ -217,12 +225,32 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
             break;
         }
         sp -= 1u;
+        slot = 1u + stack_slot[sp];
         bvh_child(stack_slot[sp], link, count);
         t = stack_t[sp];
     }
     if (!ended) {
         loops_cut += 1u;
     }
+}
+
+// Whether the walk for a feeler (segment 0..tmax) would reach the leaf
+// `slot` (1 + node * BVH_WIDTH + lane; 0: none): the leaf's box tested as
+// the walk tests it. Every ancestor's box holds the leaf's in f32, and the
+// slab arithmetic is monotone, so a feeler that enters the leaf's box
+// entered theirs. The shadow cache asks this before it answers for a
+// primitive of the BVH (accel.glsl, transmittance): an f32 test of a
+// primitive far from the ray's origin may report a hit its boxes rule
+// out. Twin of trace::bvh::bvh_leaf_admits (which also turns away the
+// rays the CPU's walk turns away; here the walk takes them, as this does).
+bool bvh_leaf_admits(uint slot, Ray ray, RayPre pre, float tmax) {
+    if (slot == 0u || slot - 1u >= BVH_WIDTH * g.flags.z) {
+        return false;
+    }
+    uint at = slot - 1u;
+    vec4 te;
+    bvec4 hit = bvh_entries(bvh_node(at / BVH_WIDTH), ray, pre, tmax, te);
+    return hit[at % BVH_WIDTH];
 }
 
 // The unbounded primitives are the caller's (accel.glsl).

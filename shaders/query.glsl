@@ -20,8 +20,12 @@
 // opaque primitive that last blocked a feeler to it from that level (0:
 // none). It never changes a result; reset per invocation
 // (shadow_cache_reset). shadow_level is the level feelers use now
-// (Rust: Work::level, set by shadow_cache_at_depth).
+// (Rust: Work::level, set by shadow_cache_at_depth). Beside each entry,
+// shadow_leaf: the BVH leaf the walk met the blocker in, 1 + node *
+// BVH_WIDTH + lane (0: none; Rust: Work::shadow_leaf), which
+// transmittance checks before it answers (accel.glsl, cache_admits).
 uint shadow_cache[SHADOW_CACHE_LEVELS * SHADOW_CACHE_LIGHTS];
+uint shadow_leaf[SHADOW_CACHE_LEVELS * SHADOW_CACHE_LIGHTS];
 uint shadow_level = 0u;
 
 // lavapipe (llvmpipe 22.3) gives each SIMD group of invocations a budget
@@ -42,6 +46,7 @@ uint work_nodes = 0u;
 void shadow_cache_reset() {
     for (uint i = 0u; i < SHADOW_CACHE_LEVELS * SHADOW_CACHE_LIGHTS; i++) {
         shadow_cache[i] = 0u;
+        shadow_leaf[i] = 0u;
     }
     shadow_level = 0u;
 }
@@ -131,6 +136,8 @@ bool query_prim_kinds(inout Query q, Prim prim, uint i, Ray ray, RayPre pre, uin
             q.trans = trans;
             if (SHADOW_CACHE && max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
                 shadow_cache[shadow_slot(q.light)] = i + 1u;
+                // The BVH's walk names the leaf (bvh.glsl, bvh_walk).
+                shadow_leaf[shadow_slot(q.light)] = 0u;
             }
             if (max_elem(q.trans) <= 0.0) {
                 q.done = true;

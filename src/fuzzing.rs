@@ -379,8 +379,26 @@ fn small_settings() -> Settings {
 
 /// Packs `s` for an image of at most [`MAX_SIDE`]² pixels and depth
 /// [`MAX_DEPTH`] and renders it on the CPU mirror; checks every pixel.
-fn render_small(s: &Scene, settings: &Settings) -> Outcome {
-    let settings = Settings {
+/// The scene and the settings the `pack` target renders `data` with (None
+/// when the bytes are too few for a spec or the reader refuses the
+/// scene): for replaying a finding elsewhere, e.g. on a GPU.
+pub fn pack_case(data: &[u8]) -> Option<(Scene, Settings)> {
+    let spec = SceneSpec::arbitrary_take_rest(Unstructured::new(data)).ok()?;
+    let text = spec.to_toml();
+    let s = scene::parse_in(
+        &OneFile(OCTAHEDRON.as_bytes()),
+        &text,
+        Path::new("fuzz.toml"),
+        &|_, _| {},
+    )
+    .ok()?;
+    let settings = small(&s, &spec.render.settings());
+    Some((s, settings))
+}
+
+/// `settings` cut to the fuzz targets' size, depth and memory limits.
+fn small(s: &Scene, settings: &Settings) -> Settings {
+    Settings {
         width: Some(settings.width.unwrap_or(s.camera.width).clamp(1, MAX_SIDE)),
         height: Some(
             settings
@@ -391,7 +409,11 @@ fn render_small(s: &Scene, settings: &Settings) -> Outcome {
         max_depth: settings.max_depth.min(MAX_DEPTH),
         budget: Budget::bytes(MEMORY_LIMIT),
         ..settings.clone()
-    };
+    }
+}
+
+fn render_small(s: &Scene, settings: &Settings) -> Outcome {
+    let settings = small(s, settings);
     let p = match packing::pack(s, &settings) {
         Ok(p) => p,
         Err(e) => {

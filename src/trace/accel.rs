@@ -104,7 +104,8 @@ pub fn transmittance<F: Real>(
 /// must not find a blocker the walk would not test. Every walk tests the
 /// unbounded primitives; under the BVH a bounded one only if the feeler
 /// enters its leaf (`bvh::bvh_leaf_admits`). (The grid, the octree and
-/// the hybrid answer as before: docs/method.md, "Shadow cache".)
+/// the hybrid answer as before: docs/method.md, "Shadow cache".) Twin:
+/// `cache_admits` in accel.glsl.
 #[inline(always)]
 pub fn cache_admits<F: Real>(
     s: &SceneView,

@@ -218,7 +218,9 @@ pub fn bvh_walk<F: Real>(
 /// shadow cache asks this before it answers for a primitive of the BVH
 /// (`accel::transmittance`), so that it never finds a blocker the walk
 /// would not (an f32 test of a primitive far from the ray's origin may
-/// report a hit its boxes rule out).
+/// report a hit its boxes rule out). Twin: `bvh_leaf_admits` in
+/// bvh.glsl (whose walk takes the rays this one turns away, and so does
+/// its check).
 #[inline(always)]
 pub fn bvh_leaf_admits<F: Real>(
     s: &SceneView,
