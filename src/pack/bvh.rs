@@ -720,9 +720,15 @@ fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> (usize, NodeBo
             lb.grow(&items[i]);
             i += 1;
         } else {
+            // The item grows the right side from a copy: read back after
+            // the swap's two overlapping stores, its bytes could not be
+            // forwarded from them, and the load stalled (perf: half of
+            // the partition's time sat after it).
+            let it = items[i];
+            rb.grow(&it);
             j -= 1;
-            items.swap(i, j);
-            rb.grow(&items[j]);
+            items[i] = items[j];
+            items[j] = it;
         }
     }
     (i, lb, rb)
