@@ -45,10 +45,21 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
 // `leaf`, shadow_leaf) for this feeler: it must not find a blocker the
 // walk would not test. Every walk tests the unbounded primitives; under
 // the BVH a bounded one only if the feeler enters its leaf
-// (bvh_leaf_admits). Twin of trace::accel::cache_admits.
+// (bvh_leaf_admits); under the grid, the octree and the hybrid only for a
+// feeler that starts within their box grown by its largest extent on
+// every side. Twin of trace::accel::cache_admits.
 bool cache_admits(uint i, uint leaf, Ray ray, RayPre pre, float dist) {
-    return !uses_accel(ACCEL_BVH) || (i >= g.counts.x && i < g.counts.y) ||
-           bvh_leaf_admits(leaf, ray, pre, dist);
+    if (i >= g.counts.x && i < g.counts.y) {
+        return true;
+    }
+    if (uses_accel(ACCEL_BVH)) {
+        return bvh_leaf_admits(leaf, ray, pre, dist);
+    }
+    PRECISE vec3 span = g.grid_max.xyz - g.grid_min.xyz;
+    float ext = max(max(max(0.0, span.x), span.y), span.z);
+    PRECISE vec3 lo = g.grid_min.xyz - ext;
+    PRECISE vec3 hi = g.grid_max.xyz + ext;
+    return all(greaterThanEqual(ray.o, lo)) && all(lessThanEqual(ray.o, hi));
 }
 
 // Light reaching the end of a shadow feeler of length dist: every primitive
@@ -60,7 +71,7 @@ bool cache_admits(uint i, uint leaf, Ray ray, RayPre pre, float dist) {
 // to test. A feeler whose origin is the light's position walks the
 // structure instead.
 vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
-    uint cached = SHADOW_CACHE && light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
+    uint cached = shadow_cache_on() && light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
     if (SHADOW_CACHE && cached != 0u &&
         cache_admits(cached - 1u, shadow_leaf[shadow_slot(light)], ray, pre, dist)) {
         work_tests += 1u;

@@ -287,4 +287,8 @@ bool has(uint feature) { return (g.trace.y & feature) != 0u; }
 // SceneView::spd_counting: rays are counted as the SPD counts them.
 bool spd_counting() { return (g.flags.x & FLAG_SPD_COUNTING) != 0u; }
 
+// SceneView::shadow_cache: feelers use the shadow cache (compiled in, and
+// not turned off by the packed scene's FLAG_NO_SHADOW_CACHE).
+bool shadow_cache_on() { return SHADOW_CACHE && (g.flags.x & FLAG_NO_SHADOW_CACHE) == 0u; }
+
 #endif

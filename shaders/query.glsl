@@ -134,7 +134,7 @@ bool query_prim_kinds(inout Query q, Prim prim, uint i, Ray ray, RayPre pre, uin
             }
             PRECISE vec3 trans = q.trans * kt;
             q.trans = trans;
-            if (SHADOW_CACHE && max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
+            if (shadow_cache_on() && max_elem(kt) <= 0.0 && q.light < SHADOW_CACHE_LIGHTS) {
                 shadow_cache[shadow_slot(q.light)] = i + 1u;
                 // The BVH's walk names the leaf (bvh.glsl, bvh_walk).
                 shadow_leaf[shadow_slot(q.light)] = 0u;

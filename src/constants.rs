@@ -103,6 +103,10 @@ pub const FEAT_SMOOTH: u32 = 4096;
 /// only), and a shadow feeler counts only towards a light the surface
 /// faces.
 pub const FLAG_SPD_COUNTING: u32 = 1;
+/// NO_SHADOW_CACHE: neither backend keeps the shadow cache (every feeler
+/// walks the structure); for checking that the cache changes no pixel,
+/// and for comparing the two backends' work counters exactly.
+pub const FLAG_NO_SHADOW_CACHE: u32 = 2;
 /// Sampling modes (`Globals::image.w`).
 pub const SAMPLING_CENTERS: u32 = 0;
 pub const SAMPLING_JITTER: u32 = 1;

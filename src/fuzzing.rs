@@ -414,7 +414,7 @@ fn small(s: &Scene, settings: &Settings) -> Settings {
 
 fn render_small(s: &Scene, settings: &Settings) -> Outcome {
     let settings = small(s, settings);
-    let p = match packing::pack(s, &settings) {
+    let mut p = match packing::pack(s, &settings) {
         Ok(p) => p,
         Err(e) => {
             let m = e.to_string();
@@ -425,18 +425,32 @@ fn render_small(s: &Scene, settings: &Settings) -> Outcome {
     let f = crate::cpu::render(&p, &|_, _| {});
     // Under the BVH, eye rays in packets must give the single rays'
     // image and ray counts, bit for bit (docs/method.md, "Packets of rays").
+    let bits = |f: &crate::cpu::Frame| {
+        f.pixels
+            .iter()
+            .flatten()
+            .map(|c| c.to_bits())
+            .collect::<Vec<_>>()
+    };
     if p.structure() == crate::pack::Accel::Bvh {
         let packed = crate::cpu::render_packets::<f32>(&p, 8, &|_, _| {});
-        let bits = |f: &crate::cpu::Frame| {
-            f.pixels
-                .iter()
-                .flatten()
-                .map(|c| c.to_bits())
-                .collect::<Vec<_>>()
-        };
         assert!(bits(&packed) == bits(&f), "packets of 8 change the image");
         assert_eq!(packed.stats, f.stats, "packets of 8 change the ray counts");
     }
+    // The shadow cache must change no pixel under any structure: every
+    // feeler walking the structure gives the same image, bit for bit
+    // (docs/method.md, "Shadow cache").
+    p.set_shadow_cache(false);
+    let walked = crate::cpu::render(&p, &|_, _| {});
+    assert!(
+        bits(&walked) == bits(&f),
+        "the shadow cache changes the image ({:?})",
+        p.structure()
+    );
+    assert_eq!(
+        walked.stats, f.stats,
+        "the shadow cache changes the ray counts"
+    );
     assert_eq!(
         f.pixels.len() as u64,
         f.width as u64 * f.height as u64,

@@ -178,3 +178,19 @@ fn a_cached_blocker_far_from_the_feeler() {
     let o = finding("pack", "shadow-cache-far-feeler.bin");
     assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
 }
+
+/// nff (a corpus input, once the targets also rendered every structure
+/// with the shadow cache off and compared): a sphereflake with one sphere
+/// of radius 5.6·10^16. Under the grid a feeler from that sphere's
+/// surface, 5·10^16 away, met the floor polygon cached by an earlier
+/// feeler: its f32 test reported a hit (the hit point's error is some
+/// 10^9 units) the grid's walk never reaches, so the cache changed
+/// pixels. Under the grid, the octree and the hybrid the cache now
+/// answers only for feelers that start near the structure's box
+/// (`accel::cache_admits`): the input renders, the same with the cache
+/// off.
+#[test]
+fn a_cached_blocker_for_a_feeler_from_a_giant() {
+    let o = finding("nff", "shadow-cache-giant-feeler.nff");
+    assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
+}

@@ -974,6 +974,94 @@ fn a_cached_blocker_far_from_the_feeler_on_the_gpu() {
     common::assert_no_validation_errors();
 }
 
+/// The nff fuzz finding `shadow-cache-giant-feeler.nff`
+/// (tests/fuzz_corpus.rs): feelers from a giant sphere's surface,
+/// 5·10^16 away, for which the f32 test of the cached floor polygon
+/// reports a hit the grid's walk never reaches. With the shadow cache on,
+/// the grid, the octree and the hybrid answer only for feelers that start
+/// near their box (accel.glsl, cache_admits): the image and ray counts
+/// of the cache off, and the CPU mirror's bit for bit on lavapipe.
+#[test]
+fn a_cached_blocker_for_a_feeler_from_a_giant_on_the_gpu() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz_regressions/nff/shadow-cache-giant-feeler.nff");
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    for accel in [Accel::Grid, Accel::Octree, Accel::Hybrid] {
+        let p = common::load(
+            &path,
+            &Settings {
+                accel,
+                ..common::small(48, 48)
+            },
+        );
+        let cpu = cpu::render(&p, &|_, _| {});
+        let [on, off] = [GpuShadowCache::On, GpuShadowCache::Off].map(|shadow_cache| {
+            let opts = GpuOptions {
+                shadow_cache,
+                ..Default::default()
+            };
+            g.render(&p, &opts, &|_, _| {})
+                .unwrap_or_else(|e| panic!("{accel:?}: {e}"))
+        });
+        assert!(
+            bits(&on) == bits(&off),
+            "{accel:?}: the cache changed the image"
+        );
+        assert_eq!(on.stats, off.stats, "{accel:?}");
+        if exact {
+            assert!(bits(&on) == bits(&cpu), "{accel:?}: not the mirror's image");
+        }
+    }
+    common::assert_no_validation_errors();
+}
+
+/// With the shadow cache off in the packed scene (`Packed::set_shadow_cache`,
+/// `FLAG_NO_SHADOW_CACHE`), which turns it off on both backends whatever
+/// `--shadow-cache` says, the twins count the same work: on lavapipe the
+/// GPU's tests, cells and nodes equal the CPU mirror's exactly on every
+/// bundled scene and structure (with the cache on they differ by its
+/// lifetime: `gpu_work_counters_match_the_cpu`), and the image is the one
+/// rendered with the cache. (The cache can cost tests as well as save
+/// them: a cached primitive that does not block is one test more.)
+#[test]
+fn without_the_shadow_cache_the_work_counters_are_equal() {
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    let on = GpuOptions {
+        shadow_cache: GpuShadowCache::On,
+        ..Default::default()
+    };
+    let mut changed = 0;
+    for path in scene_files() {
+        for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
+            let mut p = common::load(
+                &path,
+                &Settings {
+                    accel,
+                    ..common::small(40, 30)
+                },
+            );
+            let name = format!("{} {accel:?}", path.display());
+            let cached = cpu::render(&p, &|_, _| {});
+            p.set_shadow_cache(false);
+            let Some((c, gf)) = render_both(&p, &on) else {
+                return;
+            };
+            assert!(
+                bits(&c) == bits(&cached),
+                "{name}: the cache changed the image"
+            );
+            changed += usize::from(c.work != cached.work);
+            if exact {
+                assert_eq!(c.work, gf.work, "{name}: work counters");
+                assert!(bits(&c) == bits(&gf), "{name}: not the mirror's image");
+            }
+        }
+    }
+    assert!(changed > 0, "the flag changed no CPU work counter anywhere");
+}
+
 /// `--cell-layout pairs` (the grid's cells as (start, count) pairs, one
 /// reference inline, the skip in the pair): the same image, counts and
 /// work as the packed offsets on every scene file under the grid, on

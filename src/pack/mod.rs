@@ -308,6 +308,18 @@ impl Packed {
         }
     }
 
+    /// Whether feelers keep the shadow cache (both backends; on by
+    /// default: `FLAG_NO_SHADOW_CACHE`). Off, every feeler walks the
+    /// structure: the same image, more work.
+    pub fn set_shadow_cache(&mut self, on: bool) {
+        let f = &mut self.globals.flags[0];
+        if on {
+            *f &= !FLAG_NO_SHADOW_CACHE;
+        } else {
+            *f |= FLAG_NO_SHADOW_CACHE;
+        }
+    }
+
     /// The structure the tracers walk (`Grid` or `Bvh`).
     pub fn structure(&self) -> Accel {
         match self.globals.flags[1] {

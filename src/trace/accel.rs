@@ -69,7 +69,7 @@ pub fn transmittance<F: Real>(
     light: usize,
     work: &mut Work,
 ) -> V3<F> {
-    let cached = if light < SHADOW_CACHE_LIGHTS as usize {
+    let cached = if light < SHADOW_CACHE_LIGHTS as usize && s.shadow_cache() {
         *work.cached(light)
     } else {
         0
@@ -103,9 +103,15 @@ pub fn transmittance<F: Real>(
 /// (found in BVH leaf `leaf`, `Work::shadow_leaf`), for this feeler: it
 /// must not find a blocker the walk would not test. Every walk tests the
 /// unbounded primitives; under the BVH a bounded one only if the feeler
-/// enters its leaf (`bvh::bvh_leaf_admits`). (The grid, the octree and
-/// the hybrid answer as before: docs/method.md, "Shadow cache".) Twin:
-/// `cache_admits` in accel.glsl.
+/// enters its leaf (`bvh::bvh_leaf_admits`). The grid, the octree and the
+/// hybrid have no such test (their walks clip the feeler to their box and
+/// step cells in f32): there the cache answers only for feelers that
+/// start within their box grown by its largest extent on every side, so
+/// that neither the cached test nor the walk's clipping works at
+/// distances whose f32 error exceeds a cell (docs/method.md, "Shadow
+/// cache": the fuzz corpus held a feeler from a giant sphere's surface,
+/// 5·10^16 away, whose f32 test of the floor polygon reported a hit the
+/// grid's walk never reaches). Twin: `cache_admits` in accel.glsl.
 #[inline(always)]
 pub fn cache_admits<F: Real>(
     s: &SceneView,
@@ -116,9 +122,20 @@ pub fn cache_admits<F: Real>(
     dist: F,
 ) -> bool {
     let g = s.globals;
-    g.flags[1] != ACCEL_BVH
-        || (g.counts[0]..g.counts[1]).contains(&i)
-        || bvh_leaf_admits(s, leaf, ray, pre, dist)
+    if (g.counts[0]..g.counts[1]).contains(&i) {
+        return true;
+    }
+    if g.flags[1] == ACCEL_BVH {
+        return bvh_leaf_admits(s, leaf, ray, pre, dist);
+    }
+    // The grid, the octree and the hybrid: only feelers that start within
+    // the structure's box grown by its largest extent on every side (a
+    // NaN origin does not).
+    let ext = (0..3).fold(0f32, |e, a| e.max(g.grid_max[a] - g.grid_min[a]));
+    (0..3).all(|a| {
+        let o = ray.o.get(a);
+        o >= F::of(g.grid_min[a] - ext) && o <= F::of(g.grid_max[a] + ext)
+    })
 }
 
 /// Brute force over every primitive, no structure: the reference the

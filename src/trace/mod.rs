@@ -58,6 +58,12 @@ impl<'a> SceneView<'a> {
     pub fn spd_counting(&self) -> bool {
         self.globals.flags[0] & crate::constants::FLAG_SPD_COUNTING != 0
     }
+
+    /// Feelers use the shadow cache (not `FLAG_NO_SHADOW_CACHE`).
+    #[inline(always)]
+    pub fn shadow_cache(&self) -> bool {
+        self.globals.flags[0] & crate::constants::FLAG_NO_SHADOW_CACHE == 0
+    }
 }
 
 /// Ray counts as the SPD defines them (to the letter under

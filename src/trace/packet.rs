@@ -584,7 +584,7 @@ pub fn transmittance_packet<F: Real, const P: usize>(
     }
     let lanes_in = live;
     // The shadow cache's primitive first, as for one feeler.
-    let cached = if light < SHADOW_CACHE_LIGHTS as usize {
+    let cached = if light < SHADOW_CACHE_LIGHTS as usize && s.shadow_cache() {
         *work.cached(light)
     } else {
         0

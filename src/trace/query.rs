@@ -195,7 +195,8 @@ pub fn query_hit<F: Real>(
             return false;
         }
         q.trans = q.trans.mul_elem(kt);
-        if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize {
+        if kt.max_elem() <= F::zero() && q.light < SHADOW_CACHE_LIGHTS as usize && s.shadow_cache()
+        {
             *work.cached(q.light) = i + 1;
             // The BVH's walk names the leaf (`bvh::bvh_walk`).
             *work.cached_leaf(q.light) = 0;
