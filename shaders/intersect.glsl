@@ -584,7 +584,7 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
             PRECISE float nx = 2.0 * k0.x * p.x + k0.w * p.y + k1.x * p.z + k1.z;
             PRECISE float ny = 2.0 * k0.y * p.y + k0.w * p.x + k1.y * p.z + k1.w;
             PRECISE float nz = 2.0 * k0.z * p.z + k1.x * p.x + k1.y * p.y + k2.x;
-            vec3 n = normalize3(vec3(nx, ny, nz));
+            vec3 n = direction3(vec3(nx, ny, nz));
             ng = n;
             ns = n;
         }

@@ -38,6 +38,40 @@ vec3 normalize3(vec3 v) {
     return r;
 }
 
+// Whether x is infinite or a NaN, by its bits (a GPU compiler may assume
+// neither and drop isinf/isnan).
+bool not_finite(float x) {
+    return (floatBitsToUint(x) & 0x7f800000u) == 0x7f800000u;
+}
+
+// The unit vector along v where normalize3 fails (a squared length that
+// underflows or overflows): v scaled by its largest component first; an
+// infinite component gives its axis; zero (or a subnormal) or a NaN gives
+// +z. Twin of
+// V3::direction (src/trace/math.rs).
+vec3 direction3(vec3 v) {
+    bvec3 bad = bvec3(not_finite(v.x), not_finite(v.y), not_finite(v.z));
+    if (any(bad)) {
+        bool nan = (bad.x && (floatBitsToUint(v.x) & 0x007fffffu) != 0u) ||
+                   (bad.y && (floatBitsToUint(v.y) & 0x007fffffu) != 0u) ||
+                   (bad.z && (floatBitsToUint(v.z) & 0x007fffffu) != 0u);
+        if (nan) {
+            return vec3(0.0, 0.0, 1.0);
+        }
+        vec3 s = vec3(bad.x ? sign(v.x) : 0.0, bad.y ? sign(v.y) : 0.0, bad.z ? sign(v.z) : 0.0);
+        return normalize3(s);
+    }
+    vec3 a = abs(v);
+    float m = max(max(a.x, a.y), a.z);
+    // Below the least normal float, as zero (a device may flush
+    // subnormals).
+    if (m < uintBitsToFloat(0x00800000u)) {
+        return vec3(0.0, 0.0, 1.0);
+    }
+    PRECISE vec3 u = v / m;
+    return normalize3(u);
+}
+
 // exp, log and pow from +, −, ×, ÷, floor and bit moves alone: twins of
 // exp_f32, log_f32 and pow_f32 in src/trace/math.rs (Cephes' expf and
 // logf), bit for bit where the device rounds IEEE and does not fuse

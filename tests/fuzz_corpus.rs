@@ -179,6 +179,19 @@ fn a_cached_blocker_far_from_the_feeler() {
     assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
 }
 
+/// pack: a pixel came out infinite. A quadric with a coefficient of
+/// 1.24e29, hit where its gradient's components are about 10^-25: their
+/// squares underflowed, the normal was the gradient divided by a length
+/// of zero, and the diffuse term was infinite. The quadric's normal is
+/// now the gradient scaled by its largest component before it is
+/// normalised (`V3::direction`, `direction3` in math.glsl): every pixel
+/// finite.
+#[test]
+fn a_quadric_gradient_whose_square_underflows() {
+    let o = finding("pack", "quadric-normal-underflow.bin");
+    assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
+}
+
 /// nff (a corpus input, once the targets also rendered every structure
 /// with the shadow cache off and compared): a sphereflake with one sphere
 /// of radius 5.6·10^16. Under the grid a feeler from that sphere's

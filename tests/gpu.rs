@@ -954,6 +954,40 @@ fn a_cached_blocker_far_from_the_feeler_on_the_gpu() {
     }
 }
 
+/// The pack fuzz finding `quadric-normal-underflow.bin`
+/// (tests/fuzz_corpus.rs): a quadric whose gradient's squared length
+/// underflows where the eye rays hit it. The shader's normal
+/// (`direction3`) is the CPU's on both kernels: every pixel finite, and
+/// the mirror's image bit for bit on lavapipe.
+#[test]
+fn a_quadric_gradient_whose_square_underflows_on_the_gpu() {
+    use whitted::gpu::GpuKernel;
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz_regressions/pack/quadric-normal-underflow.bin");
+    let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let (scene, settings) = whitted::fuzzing::pack_case(&data).expect("the finding is a scene");
+    let p = whitted::pack::pack(&scene, &settings).expect("the finding packs");
+    let Some(g) = common::gpu() else { return };
+    let cpu = cpu::render(&p, &|_, _| {});
+    for kernel in [GpuKernel::Mega, GpuKernel::Wavefront] {
+        let opts = GpuOptions {
+            kernel,
+            ..Default::default()
+        };
+        let f = g
+            .render(&p, &opts, &|_, _| {})
+            .unwrap_or_else(|e| panic!("{kernel:?}: {e}"));
+        assert!(
+            f.pixels.iter().flatten().all(|c| c.is_finite()),
+            "{kernel:?}: a pixel is not finite"
+        );
+        if g.info().kind == DeviceKind::Cpu {
+            assert!(bits(&f) == bits(&cpu), "{kernel:?}: not the mirror's image");
+        }
+    }
+    common::assert_no_validation_errors();
+}
+
 /// Renders `p` on the GPU with the shadow cache on and off (`kernel`):
 /// the same image and ray counts, and the CPU mirror's image bit for bit
 /// on lavapipe.

@@ -579,7 +579,7 @@ pub fn normals<F: Real>(prim: &Prim, extra: &[[f32; 4]], p: V3<F>, h: &Hit<F>) -
                 two * f(k0[1]) * p.y + f(k0[3]) * p.x + f(k1[1]) * p.z + f(k1[3]),
                 two * f(k0[2]) * p.z + f(k1[0]) * p.x + f(k1[1]) * p.y + f(k2[0]),
             )
-            .normalize();
+            .direction();
             (n, n)
         }
         KIND_CONE => {

@@ -217,6 +217,38 @@ impl<F: Real> V3<F> {
     pub fn normalize(self) -> Self {
         self / self.length()
     }
+    /// The unit vector along `self` where `normalize` fails: scaled by
+    /// its largest component first, so that a length whose square
+    /// underflows or overflows still gives the direction; an infinite
+    /// component gives the axis it lies on; zero (or a subnormal) or a
+    /// NaN gives +z (no
+    /// direction to keep; any unit vector is a finite answer). For
+    /// gradients (a quadric's normal): the pack fuzz target found one
+    /// whose squared length underflowed to zero, and a pixel came out
+    /// infinite. Twin: `direction3` in math.glsl.
+    pub fn direction(self) -> Self {
+        let (x, y, z) = (self.x, self.y, self.z);
+        if x.is_nan() || y.is_nan() || z.is_nan() {
+            return v3(F::zero(), F::zero(), F::one());
+        }
+        if x.is_infinite() || y.is_infinite() || z.is_infinite() {
+            let s = |c: F| {
+                if c.is_infinite() {
+                    c.signum()
+                } else {
+                    F::zero()
+                }
+            };
+            return v3(s(x), s(y), s(z)).normalize();
+        }
+        // Below the least normal f32, as zero: a device that flushes
+        // subnormals (lavapipe) sees zero there.
+        let m = x.abs().max(y.abs()).max(z.abs());
+        if m < F::of(f32::MIN_POSITIVE) {
+            return v3(F::zero(), F::zero(), F::one());
+        }
+        (self / m).normalize()
+    }
     #[inline(always)]
     pub fn mul_elem(self, o: Self) -> Self {
         v3(self.x * o.x, self.y * o.y, self.z * o.z)
@@ -298,6 +330,41 @@ pub struct Ray<F> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `direction` gives a unit vector where `normalize` gives infinities
+    /// or NaNs: lengths whose square underflows or overflows, infinite
+    /// components, zero, subnormals and NaNs; elsewhere `normalize`'s
+    /// direction.
+    #[test]
+    fn direction_survives_what_normalize_does_not() {
+        let unit = |v: V3<f32>| {
+            let l = v.length();
+            v.x.is_finite() && v.y.is_finite() && v.z.is_finite() && (l - 1.0).abs() < 1e-6
+        };
+        let tiny = v3(3e-25f32, -4e-25, 0.0);
+        assert!(!unit(tiny.normalize()), "the case is one normalize fails");
+        let d = tiny.direction();
+        assert!(
+            unit(d) && (d.x - 0.6).abs() < 1e-6 && (d.y + 0.8).abs() < 1e-6,
+            "{d:?}"
+        );
+        let huge = v3(3e30f32, 4e30, 0.0);
+        assert!(!unit(huge.normalize()));
+        assert!(unit(huge.direction()) && (huge.direction().x - 0.6).abs() < 1e-6);
+        let inf = v3(f32::NEG_INFINITY, 1.0, f32::INFINITY);
+        let d = inf.direction();
+        assert!(unit(d) && d.x < 0.0 && d.y == 0.0 && d.z > 0.0, "{d:?}");
+        for v in [
+            v3(0.0f32, 0.0, 0.0),
+            v3(1e-40, 0.0, -1e-41),
+            v3(f32::NAN, 1.0, 0.0),
+        ] {
+            assert_eq!(v.direction(), v3(0.0, 0.0, 1.0), "{v:?}");
+        }
+        let plain = v3(1.0f32, -2.0, 2.0);
+        let d = plain.direction();
+        assert!(unit(d) && (d.x - 1.0 / 3.0).abs() < 1e-6 && (d.y + 2.0 / 3.0).abs() < 1e-6);
+    }
 
     fn rel(a: f32, b: f64) -> f64 {
         ((a as f64 - b) / b).abs()
