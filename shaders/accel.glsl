@@ -47,7 +47,8 @@ bool closest_hit(Ray ray, RayPre pre, float tmax, out Hit best, out uint best_pr
 // the BVH a bounded one only if the feeler enters its leaf
 // (bvh_leaf_admits); under the grid, the octree and the hybrid only for a
 // feeler that starts within their box grown by its largest extent on
-// every side. Twin of trace::accel::cache_admits.
+// every side and whose segment the walks' clipping to the box keeps.
+// Twin of trace::accel::cache_admits.
 bool cache_admits(uint i, uint leaf, Ray ray, RayPre pre, float dist) {
     if (i >= g.counts.x && i < g.counts.y) {
         return true;
@@ -59,7 +60,14 @@ bool cache_admits(uint i, uint leaf, Ray ray, RayPre pre, float dist) {
     float ext = max(max(max(0.0, span.x), span.y), span.z);
     PRECISE vec3 lo = g.grid_min.xyz - ext;
     PRECISE vec3 hi = g.grid_max.xyz + ext;
-    return all(greaterThanEqual(ray.o, lo)) && all(lessThanEqual(ray.o, hi));
+    float t0;
+    float t1;
+    // Under the hybrid a blocker met in a crowded cell's own BVH (leaf >
+    // 0) also needs that tree's walk to reach its leaf.
+    bool nested = uses_accel(ACCEL_HYBRID) && leaf > 0u;
+    return all(greaterThanEqual(ray.o, lo)) && all(lessThanEqual(ray.o, hi)) &&
+           g.grid_min.w != 0.0 && clip_to_box(ray.o, ray.d, pre.inv_d, dist, t0, t1) &&
+           (!nested || bvh_leaf_admits(leaf, ray, pre, dist));
 }
 
 // Light reaching the end of a shadow feeler of length dist: every primitive

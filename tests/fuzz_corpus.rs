@@ -207,3 +207,15 @@ fn a_cached_blocker_for_a_feeler_from_a_giant() {
     let o = finding("nff", "shadow-cache-giant-feeler.nff");
     assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
 }
+
+/// nff (10 minutes of fuzzing after the fix above): SPD rings with two
+/// cylinders stretched to 10^5 times their width. A feeler passing beside
+/// the grid's box met one cached: its f32 test reported a hit half a unit
+/// off the cylinder's surface, outside the box, where the walk, which
+/// clips the feeler to the box, tests nothing. The cache now also needs
+/// the walks' own clipping to keep the feeler (`accel::cache_admits`).
+#[test]
+fn a_cached_blocker_for_a_feeler_beside_the_grid() {
+    let o = finding("nff", "shadow-cache-long-cylinder.nff");
+    assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
+}

@@ -1014,32 +1014,39 @@ fn the_cache_changes_nothing(p: &Packed, kernel: whitted::gpu::GpuKernel, name: 
     common::assert_no_validation_errors();
 }
 
-/// The nff fuzz finding `shadow-cache-giant-feeler.nff`
-/// (tests/fuzz_corpus.rs): feelers from a giant sphere's surface,
-/// 5·10^16 away, for which the f32 test of the cached floor polygon
-/// reports a hit the grid's walk never reaches. With the shadow cache on,
-/// the grid, the octree and the hybrid answer only for feelers that start
-/// near their box (accel.glsl, cache_admits): on both kernels the image
+/// The nff fuzz findings `shadow-cache-giant-feeler.nff` and
+/// `shadow-cache-long-cylinder.nff` (tests/fuzz_corpus.rs): feelers from a
+/// giant sphere's surface, 5·10^16 away, and feelers passing beside the
+/// grid's box, for which the f32 test of a cached primitive reports a hit
+/// the grid's walk never reaches. With the shadow cache on, the grid, the
+/// octree and the hybrid answer only for feelers that start near their
+/// box and enter it (accel.glsl, cache_admits): on both kernels the image
 /// and ray counts of the cache off, and the CPU mirror's bit for bit on
 /// lavapipe.
 #[test]
 fn a_cached_blocker_for_a_feeler_from_a_giant_on_the_gpu() {
     use whitted::gpu::GpuKernel;
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fuzz_regressions/nff/shadow-cache-giant-feeler.nff");
     if common::gpu().is_none() {
         return;
     }
-    for accel in [Accel::Grid, Accel::Octree, Accel::Hybrid] {
-        let p = common::load(
-            &path,
-            &Settings {
-                accel,
-                ..common::small(48, 48)
-            },
-        );
-        for kernel in [GpuKernel::Mega, GpuKernel::Wavefront] {
-            the_cache_changes_nothing(&p, kernel, &format!("{accel:?} {kernel:?}"));
+    for name in [
+        "shadow-cache-giant-feeler.nff",
+        "shadow-cache-long-cylinder.nff",
+    ] {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fuzz_regressions/nff")
+            .join(name);
+        for accel in [Accel::Grid, Accel::Octree, Accel::Hybrid] {
+            let p = common::load(
+                &path,
+                &Settings {
+                    accel,
+                    ..common::small(48, 48)
+                },
+            );
+            for kernel in [GpuKernel::Mega, GpuKernel::Wavefront] {
+                the_cache_changes_nothing(&p, kernel, &format!("{name} {accel:?} {kernel:?}"));
+            }
         }
     }
 }

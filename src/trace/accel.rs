@@ -6,14 +6,16 @@
 //! both queries (`query.rs`).
 
 use super::bvh::{bvh_leaf_admits, bvh_traverse};
-use super::grid::grid_traverse;
+use super::grid::{clip_to_box, grid_traverse};
 use super::intersect::{intersect, Hit, RayPre};
 use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
 use super::octree::{octree_traverse, octree_traverse_stack};
 use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
-use crate::constants::{ACCEL_BVH, ACCEL_OCTREE, OCTREE_WALK_STACK, SHADOW_CACHE_LIGHTS};
+use crate::constants::{
+    ACCEL_BVH, ACCEL_HYBRID, ACCEL_OCTREE, OCTREE_WALK_STACK, SHADOW_CACHE_LIGHTS,
+};
 
 /// Runs query `q`: the unbounded primitives, then the structure in use.
 #[inline(always)]
@@ -108,10 +110,14 @@ pub fn transmittance<F: Real>(
 /// step cells in f32): there the cache answers only for feelers that
 /// start within their box grown by its largest extent on every side, so
 /// that neither the cached test nor the walk's clipping works at
-/// distances whose f32 error exceeds a cell (docs/method.md, "Shadow
-/// cache": the fuzz corpus held a feeler from a giant sphere's surface,
-/// 5·10^16 away, whose f32 test of the floor polygon reported a hit the
-/// grid's walk never reaches). Twin: `cache_admits` in accel.glsl.
+/// distances whose f32 error exceeds a cell, and whose segment the walks'
+/// clipping to their box keeps (docs/method.md, "Shadow cache": the fuzz
+/// corpus held a feeler from a giant sphere's surface, 5·10^16 away,
+/// whose f32 test of the floor polygon reported a hit the grid's walk
+/// never reaches; the nff target then a feeler that passed beside a
+/// cylinder 10^5 times as long as wide, whose f32 test reported a hit
+/// half a unit off its surface, outside the grid's box, which the feeler
+/// missed). Twin: `cache_admits` in accel.glsl.
 #[inline(always)]
 pub fn cache_admits<F: Real>(
     s: &SceneView,
@@ -130,12 +136,23 @@ pub fn cache_admits<F: Real>(
     }
     // The grid, the octree and the hybrid: only feelers that start within
     // the structure's box grown by its largest extent on every side (a
-    // NaN origin does not).
+    // NaN origin does not), and whose segment the walks' own clipping to
+    // that box keeps (a feeler that misses it meets no bounded primitive
+    // in any walk).
     let ext = (0..3).fold(0f32, |e, a| e.max(g.grid_max[a] - g.grid_min[a]));
-    (0..3).all(|a| {
+    let near = (0..3).all(|a| {
         let o = ray.o.get(a);
         o >= F::of(g.grid_min[a] - ext) && o <= F::of(g.grid_max[a] + ext)
-    })
+    });
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    let inv = [pre.inv_d.x, pre.inv_d.y, pre.inv_d.z];
+    // Under the hybrid a blocker met in a crowded cell's own BVH (`leaf`
+    // > 0) also needs that tree's walk to reach its leaf.
+    let nested = g.flags[1] == ACCEL_HYBRID && leaf > 0;
+    near && g.grid_min[3] != 0.0
+        && clip_to_box(s, &o, &d, &inv, dist).is_some()
+        && (!nested || bvh_leaf_admits(s, leaf, ray, pre, dist))
 }
 
 /// Brute force over every primitive, no structure: the reference the
