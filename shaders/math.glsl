@@ -47,8 +47,7 @@ bool not_finite(float x) {
 // The unit vector along v where normalize3 fails (a squared length that
 // underflows or overflows): v scaled by its largest component first; an
 // infinite component gives its axis; zero (or a subnormal) or a NaN gives
-// +z. Twin of
-// V3::direction (src/trace/math.rs).
+// +z. Twin of V3::direction (src/trace/math.rs).
 vec3 direction3(vec3 v) {
     bvec3 bad = bvec3(not_finite(v.x), not_finite(v.y), not_finite(v.z));
     if (any(bad)) {

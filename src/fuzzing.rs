@@ -186,9 +186,8 @@ pub fn pack_toml(data: &[u8]) -> Option<String> {
 /// The `pack` target on a spec already built.
 pub fn pack_spec(spec: &SceneSpec) -> Outcome {
     let text = spec.to_toml();
-    let path = Path::new("fuzz.toml");
-    match scene::parse_in(&OneFile(OCTAHEDRON.as_bytes()), &text, path, &|_, _| {}) {
-        Err(e) => refused(&e.to_string(), path, &text),
+    match parse_spec_toml(&text) {
+        Err(e) => refused(&e.to_string(), Path::new(SPEC_FILE), &text),
         Ok(s) => {
             check_scene(&s);
             render_small(&s, &spec.render.settings())
@@ -377,21 +376,26 @@ fn small_settings() -> Settings {
     }
 }
 
-/// Packs `s` for an image of at most [`MAX_SIDE`]² pixels and depth
-/// [`MAX_DEPTH`] and renders it on the CPU mirror; checks every pixel.
+/// The name the `pack` target gives the TOML it writes from a spec.
+const SPEC_FILE: &str = "fuzz.toml";
+
+/// Reads a spec's TOML as the `pack` target does ([`OCTAHEDRON`] for its
+/// meshes).
+fn parse_spec_toml(text: &str) -> Result<Scene, scene::SceneError> {
+    scene::parse_in(
+        &OneFile(OCTAHEDRON.as_bytes()),
+        text,
+        Path::new(SPEC_FILE),
+        &|_, _| {},
+    )
+}
+
 /// The scene and the settings the `pack` target renders `data` with (None
 /// when the bytes are too few for a spec or the reader refuses the
 /// scene): for replaying a finding elsewhere, e.g. on a GPU.
 pub fn pack_case(data: &[u8]) -> Option<(Scene, Settings)> {
     let spec = SceneSpec::arbitrary_take_rest(Unstructured::new(data)).ok()?;
-    let text = spec.to_toml();
-    let s = scene::parse_in(
-        &OneFile(OCTAHEDRON.as_bytes()),
-        &text,
-        Path::new("fuzz.toml"),
-        &|_, _| {},
-    )
-    .ok()?;
+    let s = parse_spec_toml(&spec.to_toml()).ok()?;
     let settings = small(&s, &spec.render.settings());
     Some((s, settings))
 }
@@ -412,6 +416,8 @@ fn small(s: &Scene, settings: &Settings) -> Settings {
     }
 }
 
+/// Packs `s` for an image of at most [`MAX_SIDE`]² pixels and depth
+/// [`MAX_DEPTH`] and renders it on the CPU mirror; checks every pixel.
 fn render_small(s: &Scene, settings: &Settings) -> Outcome {
     let settings = small(s, settings);
     let mut p = match packing::pack(s, &settings) {

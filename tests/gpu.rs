@@ -922,6 +922,16 @@ fn the_shadow_cache_changes_no_pixel_on_the_gpu() {
     common::assert_no_validation_errors();
 }
 
+/// The scene and settings of the pack fuzz target's finding `name`
+/// (tests/fuzz_regressions/pack/), as the target renders it.
+fn pack_finding(name: &str) -> (whitted::scene::Scene, Settings) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz_regressions/pack")
+        .join(name);
+    let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    whitted::fuzzing::pack_case(&data).expect("the finding is a scene")
+}
+
 /// The pack fuzz target's finding `shadow-cache-far-feeler.bin`
 /// (tests/fuzz_corpus.rs): a feeler from a hit on a plane 10^12 away for
 /// which the f32 test of a cached sphere reports a hit the BVH's boxes
@@ -934,10 +944,7 @@ fn the_shadow_cache_changes_no_pixel_on_the_gpu() {
 #[test]
 fn a_cached_blocker_far_from_the_feeler_on_the_gpu() {
     use whitted::gpu::GpuKernel;
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fuzz_regressions/pack/shadow-cache-far-feeler.bin");
-    let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let (scene, settings) = whitted::fuzzing::pack_case(&data).expect("the finding is a scene");
+    let (scene, settings) = pack_finding("shadow-cache-far-feeler.bin");
     let settings = Settings {
         width: Some(32),
         height: Some(32),
@@ -962,10 +969,7 @@ fn a_cached_blocker_far_from_the_feeler_on_the_gpu() {
 #[test]
 fn a_quadric_gradient_whose_square_underflows_on_the_gpu() {
     use whitted::gpu::GpuKernel;
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fuzz_regressions/pack/quadric-normal-underflow.bin");
-    let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let (scene, settings) = whitted::fuzzing::pack_case(&data).expect("the finding is a scene");
+    let (scene, settings) = pack_finding("quadric-normal-underflow.bin");
     let p = whitted::pack::pack(&scene, &settings).expect("the finding packs");
     let Some(g) = common::gpu() else { return };
     let cpu = cpu::render(&p, &|_, _| {});

@@ -221,8 +221,8 @@ impl<F: Real> V3<F> {
     /// its largest component first, so that a length whose square
     /// underflows or overflows still gives the direction; an infinite
     /// component gives the axis it lies on; zero (or a subnormal) or a
-    /// NaN gives +z (no
-    /// direction to keep; any unit vector is a finite answer). For
+    /// NaN gives +z (no direction to keep; any unit vector is a finite
+    /// answer). For
     /// gradients (a quadric's normal): the pack fuzz target found one
     /// whose squared length underflowed to zero, and a pixel came out
     /// infinite. Twin: `direction3` in math.glsl.
