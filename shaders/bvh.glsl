@@ -142,22 +142,38 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                 if (m > 0u) {
                     // A feeler takes them in lane order (all at distance
                     // 0: its segment never shrinks, so the order cannot
-                    // save a test, and sorting by distance would cost).
-                    float inf = uintBitsToFloat(0x7f800000u);
-                    vec4 d = q.shadow ? vec4(0.0) : te;
-                    float s0 = enter.x ? d.x : inf;
-                    float s1 = enter.y ? d.y : inf;
-                    float s2 = enter.z ? d.z : inf;
-                    float s3 = enter.w ? d.w : inf;
-                    uint k0 = enter.x ? 0u : 4u;
-                    uint k1 = enter.y ? 1u : 5u;
-                    uint k2 = enter.z ? 2u : 6u;
-                    uint k3 = enter.w ? 3u : 7u;
-                    bvh_order2(s0, k0, s1, k1);
-                    bvh_order2(s2, k2, s3, k3);
-                    bvh_order2(s0, k0, s2, k2);
-                    bvh_order2(s1, k1, s3, k3);
-                    bvh_order2(s1, k1, s2, k2);
+                    // save a test): the entered lanes' bits, lowest
+                    // first, with no sorting network (lavapipe: gears
+                    // 3 %, rings 1 % less device time). A closest-hit
+                    // query sorts them by entry distance.
+                    float s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+                    uint k0, k1, k2, k3;
+                    if (q.shadow) {
+                        uint bits = uint(enter.x) | uint(enter.y) << 1u |
+                                    uint(enter.z) << 2u | uint(enter.w) << 3u;
+                        k0 = uint(findLSB(bits));
+                        bits &= bits - 1u;
+                        k1 = uint(findLSB(bits));
+                        bits &= bits - 1u;
+                        k2 = uint(findLSB(bits));
+                        bits &= bits - 1u;
+                        k3 = uint(findLSB(bits));
+                    } else {
+                        float inf = uintBitsToFloat(0x7f800000u);
+                        s0 = enter.x ? te.x : inf;
+                        s1 = enter.y ? te.y : inf;
+                        s2 = enter.z ? te.z : inf;
+                        s3 = enter.w ? te.w : inf;
+                        k0 = enter.x ? 0u : 4u;
+                        k1 = enter.y ? 1u : 5u;
+                        k2 = enter.z ? 2u : 6u;
+                        k3 = enter.w ? 3u : 7u;
+                        bvh_order2(s0, k0, s1, k1);
+                        bvh_order2(s2, k2, s3, k3);
+                        bvh_order2(s0, k0, s2, k2);
+                        bvh_order2(s1, k1, s3, k3);
+                        bvh_order2(s1, k1, s2, k2);
+                    }
                     uint base = link * BVH_WIDTH;
                     if (m > 3u) {
                         stack_slot[sp] = base + k3;
