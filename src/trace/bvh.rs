@@ -154,7 +154,8 @@ pub fn bvh_walk<F: Real>(
                     // segment never shrinks, so no order saves it a test):
                     // the lowest now, the others pushed, the highest
                     // deepest, a store each whether entered or not rather
-                    // than a branch each (SPD rings and gears 4 % faster).
+                    // than a branch each (SPD rings 2-4 % faster, others level;
+                    // BENCHMARKS.md).
                     let k = mask.trailing_zeros() as usize;
                     let rest = mask & (mask - 1);
                     for j in (1..W).rev() {
