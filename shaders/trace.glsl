@@ -181,7 +181,9 @@ vec3 trace_ray(Ray ray) {
         Entry rf;
         uint kids = spawn(e, s, tr, rf);
         // The refracted ray below the reflected one: reflection is walked
-        // first.
+        // first. (The CPU twin keeps the reflected ray out of its stack and
+        // walks it next: the same order; on lavapipe that was level,
+        // docs/profiling.md, on the CPU 3-10 % faster.)
         if ((kids & 1u) != 0u) {
             stack[sp] = tr;
             sp += 1u;
