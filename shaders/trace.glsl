@@ -183,7 +183,7 @@ vec3 trace_ray(Ray ray) {
         // The refracted ray below the reflected one: reflection is walked
         // first. (The CPU twin keeps the reflected ray out of its stack and
         // walks it next: the same order; on lavapipe that was level,
-        // docs/profiling.md, on the CPU 3-10 % faster.)
+        // docs/profiling.md, on the CPU level to 10 % faster: BENCHMARKS.md.)
         if ((kids & 1u) != 0u) {
             stack[sp] = tr;
             sp += 1u;
