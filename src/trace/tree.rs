@@ -28,7 +28,7 @@ use super::{RayStats, SceneView};
 use crate::constants::*;
 use arrayvec::ArrayVec;
 
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct Entry<F> {
     o: V3<F>,
     d: V3<F>,
