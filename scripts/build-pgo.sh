@@ -3,7 +3,7 @@
 # instrumented build, training renders, then a build that uses their
 # profile) at target/pgo/<host>/release/whitted. The same images bit for
 # bit as `cargo build --release` (checked at the end: PGO moves code, not
-# arithmetic); 2-10 % less CPU render time on the SPD scenes and random
+# arithmetic); 2-11 % less CPU render time on the SPD scenes and random
 # spheres (BENCHMARKS.md, "A profile-guided build").
 #
 # The training scenes are not the benchmark's: the SPD generators at
