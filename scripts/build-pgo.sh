@@ -11,8 +11,9 @@
 # the example scenes, rendered by the CPU mirror under every structure.
 #
 # Needs llvm-profdata from rustc's own LLVM: `rustup component add
-# llvm-tools`. Takes two release builds (about 4-5 minutes each on two
-# cores) and half a minute of renders. Usage: scripts/build-pgo.sh
+# llvm-tools`. Takes about 10 minutes on two cores: two release builds
+# here, half a minute of renders, and the plain release build the check
+# compares with (when it is not up to date). Usage: scripts/build-pgo.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 host=$(rustc -vV | sed -n 's/^host: //p')
@@ -75,16 +76,17 @@ done
 echo "build-pgo.sh: 3/3 build with the profile" >&2
 build "-Cprofile-use=$root/whitted.profdata"
 
-# The profile-guided binary must render what the instrumented one did (the
-# same source, the same float arithmetic), bit for bit.
-"$bin" generate rings --size 3 -o "$scenes/check.nff" -q
-"$bin" render "$scenes/check.nff" --preset spd --backend cpu -o "$scenes/pgo.png" -q
-# (the instrumented binary was replaced by the final one: render with a
-# plain build of the same source for the comparison)
+# The profile-guided binary must render what a plain release build of the
+# same source renders, bit for bit (the same float arithmetic): one scene
+# under the BVH, one under the grid.
 cargo build --release -q
-target/release/whitted render "$scenes/check.nff" --preset spd --backend cpu -o "$scenes/plain.png" -q
-if ! cmp -s "$scenes/pgo.png" "$scenes/plain.png"; then
-  echo "build-pgo.sh: the profile-guided binary renders a different image from the plain release build" >&2
-  exit 1
-fi
+for check in "rings.nff --preset spd" "spheres.nff --width 256 --height 192 --max-depth 5"; do
+  read -r -a args <<<"$check"
+  "$bin" render "$scenes/${args[0]}" "${args[@]:1}" --backend cpu -o "$scenes/pgo.png" -q
+  target/release/whitted render "$scenes/${args[0]}" "${args[@]:1}" --backend cpu -o "$scenes/plain.png" -q
+  if ! cmp -s "$scenes/pgo.png" "$scenes/plain.png"; then
+    echo "build-pgo.sh: the profile-guided binary renders ${args[0]} differently from the plain release build" >&2
+    exit 1
+  fi
+done
 echo "build-pgo.sh: $bin (the same image as target/release/whitted)"
