@@ -2880,3 +2880,101 @@ fn cli_kernel_wavefront() {
     );
     assert!(!png.exists());
 }
+
+/// `shaders/calibration.comp`, the plain grid tracer that measures how
+/// far the exact kernel is from the simplest one (docs/profiling.md):
+/// on a field of opaque reflective spheres under the grid it traces the
+/// exact kernel's rays (each count within 2 %: the two sphere tests
+/// part at grazing rays) and shows the same
+/// picture (PSNR over 30 dB: a different shading formula, not a
+/// different scene); a scene it does not model comes out magenta, with
+/// no ray traced.
+#[test]
+fn the_calibration_kernel_traces_the_same_rays() {
+    let Some(_g) = common::gpu() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let spv = dir.path().join("calibration.spv");
+    std::fs::write(&spv, whitted::gpu::shaders::CALIBRATION).unwrap();
+    // 400 spheres on a jittered lattice, three materials, two lights.
+    let mut nff = String::from(
+        "v\nfrom 2.6 -3.4 1.9\nat 0 0 0\nup 0 0 1\nangle 40\nhither 0.001\n\
+         resolution 160 120\nb 0.05 0.08 0.15\nl 4 -3 6\nl -5 -4 3\n",
+    );
+    let mut seed = 12345u64;
+    let mut rand = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 33) as f64 / (1u64 << 31) as f64
+    };
+    for i in 0..400 {
+        if i % 134 == 0 {
+            let f = [
+                "1 0.2 0.1 0.7 0.4 30 0 1",
+                "1 1 1 0.1 0.6 80 0 1",
+                "0.1 0.4 1 0.7 0.3 20 0 1",
+            ];
+            nff.push_str(&format!("f {}\n", f[i / 134]));
+        }
+        let (x, y, z) = (i % 8, (i / 8) % 8, i / 64);
+        let mut c = |k: usize| -1.0 + 2.0 * (k as f64 + 0.2 + 0.6 * rand()) / 8.0;
+        let (cx, cy, cz) = (c(x), c(y), c(z));
+        let r = 0.05 + 0.04 * rand();
+        nff.push_str(&format!("s {cx} {cy} {cz} {r}\n"));
+    }
+    let scene = dir.path().join("field.nff");
+    std::fs::write(&scene, nff).unwrap();
+    let render = |scene: &std::path::Path, calibration: bool, name: &str| {
+        let (png, json) = (
+            dir.path().join(format!("{name}.png")),
+            dir.path().join(format!("{name}.json")),
+        );
+        let mut c = whitted();
+        if calibration {
+            c.env("WHITTED_RENDER_SPV", &spv);
+        }
+        let o = c
+            .args(["render", "--backend", "gpu", "--accel", "grid", "-q", "-o"])
+            .arg(&png)
+            .arg("--stats")
+            .arg(&json)
+            .arg(scene)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{name}: {}", stderr_of(&o));
+        assert!(
+            !stderr_of(&o).contains("vulkan:"),
+            "{name}: {}",
+            stderr_of(&o)
+        );
+        let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (image::open(&png).unwrap().to_rgb8(), s["rays"].clone())
+    };
+    let (exact, er) = render(&scene, false, "exact");
+    let (cal, cr) = render(&scene, true, "calibration");
+    for kind in ["eye", "eye_hit", "reflect", "shadow"] {
+        let (e, c) = (er[kind].as_f64().unwrap(), cr[kind].as_f64().unwrap());
+        assert!(
+            e > 0.0 && (c - e).abs() <= 0.02 * e,
+            "{kind}: exact {e}, calibration {c}"
+        );
+    }
+    let mse = exact
+        .as_raw()
+        .iter()
+        .zip(cal.as_raw())
+        .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
+        .sum::<f64>()
+        / exact.as_raw().len() as f64;
+    let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10();
+    println!("calibration against exact: rays {cr} and {er}, PSNR {psnr:.1} dB");
+    assert!(psnr > 30.0, "PSNR {psnr:.1} dB");
+    // A floor polygon: not modelled.
+    let (img, rays) = render(
+        &common::repo().join("scenes/showcase.toml"),
+        true,
+        "showcase",
+    );
+    assert!(img.pixels().all(|p| p.0 == [255, 0, 255]));
+    assert_eq!(rays["eye"], 0);
+}

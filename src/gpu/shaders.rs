@@ -25,3 +25,8 @@ pub const WF_SHADE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_
 pub const WF_SHADOW: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_shadow.spv"));
 pub const WF_COMBINE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_combine.spv"));
 pub const WF_RESOLVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_resolve.spv"));
+/// `shaders/calibration.comp`: a plain grid tracer for opaque sphere
+/// fields, the yardstick the exact kernel is measured against on a device
+/// (docs/profiling.md). Not used by `render`; run through
+/// `WHITTED_RENDER_SPV`.
+pub const CALIBRATION: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/calibration.spv"));
