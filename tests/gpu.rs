@@ -2883,7 +2883,8 @@ fn cli_kernel_wavefront() {
 
 /// `shaders/calibration.comp`, the plain grid tracer that measures how
 /// far the exact kernel is from the simplest one (docs/profiling.md):
-/// on a field of opaque reflective spheres under the grid it traces the
+/// on a field of opaque spheres under the grid (random spheres without
+/// their floor) it traces the
 /// exact kernel's rays (each count within 2 %: the two sphere tests
 /// part at grazing rays) and shows the same
 /// picture (PSNR over 30 dB: a different shading formula, not a
@@ -2895,33 +2896,15 @@ fn the_calibration_kernel_traces_the_same_rays() {
     let dir = tempfile::tempdir().unwrap();
     let spv = dir.path().join("calibration.spv");
     std::fs::write(&spv, whitted::gpu::shaders::CALIBRATION).unwrap();
-    // 400 spheres on a jittered lattice, three materials, two lights.
-    let mut nff = String::from(
-        "v\nfrom 2.6 -3.4 1.9\nat 0 0 0\nup 0 0 1\nangle 40\nhither 0.001\n\
-         resolution 160 120\nb 0.05 0.08 0.15\nl 4 -3 6\nl -5 -4 3\n",
-    );
-    let mut seed = 12345u64;
-    let mut rand = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 33) as f64 / (1u64 << 31) as f64
-    };
-    for i in 0..400 {
-        if i % 134 == 0 {
-            let f = [
-                "1 0.2 0.1 0.7 0.4 30 0 1",
-                "1 1 1 0.1 0.6 80 0 1",
-                "0.1 0.4 1 0.7 0.3 20 0 1",
-            ];
-            nff.push_str(&format!("f {}\n", f[i / 134]));
-        }
-        let (x, y, z) = (i % 8, (i / 8) % 8, i / 64);
-        let mut c = |k: usize| -1.0 + 2.0 * (k as f64 + 0.2 + 0.6 * rand()) / 8.0;
-        let (cx, cy, cz) = (c(x), c(y), c(z));
-        let r = 0.05 + 0.04 * rand();
-        nff.push_str(&format!("s {cx} {cy} {cz} {r}\n"));
-    }
+    // `whitted generate --count 2000` without its floor polygon, 160×120.
+    let mut field = whitted::gen::random_spheres(2000, 7);
+    assert!(matches!(
+        field.objects[0].shape,
+        whitted::scene::Shape::Polygon { .. }
+    ));
+    field.objects.remove(0);
+    (field.camera.width, field.camera.height) = (160, 120);
+    let nff = whitted::export::to_nff(&field).unwrap();
     let scene = dir.path().join("field.nff");
     std::fs::write(&scene, nff).unwrap();
     let render = |scene: &std::path::Path, calibration: bool, name: &str| {
