@@ -8,7 +8,7 @@
 // It traces what render.comp traces on a field of opaque spheres under
 // the grid (eye rays, one feeler per light facing the surface,
 // reflections to the depth limit and above min weight; the same ray
-// counts within a fraction of a per cent), with the textbook method and
+// counts within about 2 %), with the textbook method and
 // nothing else: the DDA without the empty-cell jumps or the test-once
 // rule, the sphere test reading one word of four per test, opaque
 // feelers that stop at the first blocker, Phong shading, no `precise`,

@@ -2882,14 +2882,12 @@ fn cli_kernel_wavefront() {
 }
 
 /// `shaders/calibration.comp`, the plain grid tracer that measures how
-/// far the exact kernel is from the simplest one (docs/profiling.md):
-/// on a field of opaque spheres under the grid (random spheres without
-/// their floor) it traces the
-/// exact kernel's rays (each count within 2 %: the two sphere tests
-/// part at grazing rays) and shows the same
-/// picture (PSNR over 30 dB: a different shading formula, not a
-/// different scene); a scene it does not model comes out magenta, with
-/// no ray traced.
+/// far the exact kernel is from the simplest one (docs/profiling.md): on
+/// a field of opaque spheres under the grid (random spheres without
+/// their floor) it traces the exact kernel's rays (each count within 2 %:
+/// the two sphere tests part at grazing rays) and shows the same picture
+/// (PSNR over 30 dB: another shading formula, not another scene); a scene
+/// it does not model comes out magenta, with no ray traced.
 #[test]
 fn the_calibration_kernel_traces_the_same_rays() {
     let Some(_g) = common::gpu() else { return };
@@ -2942,17 +2940,15 @@ fn the_calibration_kernel_traces_the_same_rays() {
             "{kind}: exact {e}, calibration {c}"
         );
     }
-    let mse = exact
-        .as_raw()
-        .iter()
-        .zip(cal.as_raw())
-        .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
-        .sum::<f64>()
-        / exact.as_raw().len() as f64;
-    let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10();
+    let rgb = |img: &image::RgbImage| -> Vec<[f32; 3]> {
+        img.pixels()
+            .map(|p| p.0.map(|c| c as f32 / 255.0))
+            .collect()
+    };
+    let psnr = metrics::psnr(&rgb(&exact), &rgb(&cal));
     println!("calibration against exact: rays {cr} and {er}, PSNR {psnr:.1} dB");
     assert!(psnr > 30.0, "PSNR {psnr:.1} dB");
-    // A floor polygon: not modelled.
+    // Boxes and glass: not modelled.
     let (img, rays) = render(
         &common::repo().join("scenes/showcase.toml"),
         true,
