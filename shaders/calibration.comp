@@ -1,9 +1,9 @@
 // The calibration kernel: a plain grid tracer, the yardstick of issue
 // 11's lavapipe target (docs/profiling.md, "A plain grid tracer as the
-// yardstick"). Not a twin of anything and not used by `render`: run it
-// through WHITTED_RENDER_SPV (docs/profiling.md, "Trying a kernel
-// variant") to see how fast the simplest kernel for a scene runs on a
-// device, against the exact kernel (render.comp) and the CPU mirror.
+// yardstick"). Not a twin of anything, and never the scene's image:
+// `--kernel calibration` (render, bench, profile) runs it to show how
+// fast the simplest kernel for a scene runs on a device, against the
+// exact kernel (render.comp) and the CPU mirror.
 //
 // It traces what render.comp traces on a field of opaque spheres under
 // the grid (eye rays, one feeler per light facing the surface,
@@ -16,7 +16,9 @@
 // kernel's (tests/gpu.rs, `the_calibration_kernel_traces_the_same_rays`),
 // not equal. Any other scene (another structure, primitives other than
 // spheres, unbounded ones, refraction, SPD counting) comes out magenta:
-// this kernel does not model it.
+// this kernel does not model it (`--kernel calibration` refuses such a
+// scene before it runs: gpu::calibration_refusal, the twin of
+// `supported` below).
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require

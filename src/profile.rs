@@ -77,7 +77,9 @@ pub fn run(
         .collect();
     let total = (combos.len() * (1 + repeat.max(1) as usize)) as u64;
     let mut step = 0u64;
-    let mut first: Option<Frame> = None;
+    // The first image of the scene's kernels and of the calibration
+    // kernel (its own pixels): every other combination must equal its own.
+    let mut first: [Option<Frame>; 2] = [None, None];
     let mut refused: Vec<Option<String>> = Vec::new();
     let mut rays = Vec::new();
     let opts = |k: GpuKernel, w: [u32; 2], t: u32| GpuOptions {
@@ -91,7 +93,8 @@ pub fn run(
         step += 1;
         match g.render(packed, &opts(k, w, t), &|_, _| {}) {
             Ok(f) => {
-                if let Some(f0) = &first {
+                let class = (k == GpuKernel::Calibration) as usize;
+                if let Some(f0) = &first[class] {
                     let same = f0
                         .pixels
                         .iter()
@@ -110,7 +113,7 @@ pub fn run(
                     }
                 }
                 rays.push(f.stats.total());
-                first.get_or_insert(f);
+                first[class].get_or_insert(f);
                 refused.push(None);
             }
             Err(e) if e.is_user_error() => {
@@ -158,7 +161,12 @@ pub fn run(
             .partial_cmp(&(b.refused.is_some(), b.key()))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    if let Some(r) = rows.first_mut().filter(|r| r.refused.is_none()) {
+    // The best of the kernels that render the scene's image (the
+    // calibration kernel's rows show their time against it).
+    if let Some(r) = rows
+        .iter_mut()
+        .find(|r| r.refused.is_none() && r.kernel != GpuKernel::Calibration)
+    {
         r.best = true;
     }
     Ok(rows)
@@ -257,7 +265,7 @@ pub fn heat_map(rows: &[Row], title: &str) -> crate::plot::HeatMap {
             tiles.push(r.tile);
         }
     }
-    wgs.sort_by_key(|&(k, w)| (k == GpuKernel::Wavefront, w[0] * w[1], w[0]));
+    wgs.sort_by_key(|&(k, w)| (k as u8, w[0] * w[1], w[0]));
     let several = wgs.iter().any(|&(k, _)| k != wgs[0].0);
     tiles.sort();
     let best = rows.iter().find(|r| r.best).map_or(1.0, |r| r.key());
@@ -387,7 +395,11 @@ pub fn apply_saved(info: &DeviceInfo, opts: &GpuOptions) -> GpuOptions {
         out.workgroup = s.workgroup;
         out.tile = s.tile;
     }
-    if opts.saved_kernel && (s.kernel == GpuKernel::Mega || opts.math == GpuMath::Exact) {
+    // Never the calibration kernel (a hand-edited file): not the image.
+    if opts.saved_kernel
+        && s.kernel != GpuKernel::Calibration
+        && (s.kernel == GpuKernel::Mega || opts.math == GpuMath::Exact)
+    {
         log::debug!(
             "the {} kernel from {} (whitted profile --save)",
             s.kernel.name(),

@@ -2956,4 +2956,76 @@ fn the_calibration_kernel_traces_the_same_rays() {
     );
     assert!(img.pixels().all(|p| p.0 == [255, 0, 255]));
     assert_eq!(rays["eye"], 0);
+
+    // `--kernel calibration` runs the same module; the scenes it cannot
+    // render are refused (exit 2, the reason, no image).
+    let by_flag = dir.path().join("flag.png");
+    whitted()
+        .args(["render", "--backend", "gpu", "--accel", "grid", "--kernel"])
+        .args(["calibration", "-q", "-o"])
+        .arg(&by_flag)
+        .arg(&scene)
+        .assert()
+        .success();
+    let by_env = dir.path().join("calibration.png");
+    assert_eq!(
+        std::fs::read(&by_flag).unwrap(),
+        std::fs::read(&by_env).unwrap()
+    );
+    let refused = dir.path().join("refused.png");
+    let o = whitted()
+        .args(["render", "scenes/showcase.toml", "--backend", "gpu"])
+        .args(["--kernel", "calibration", "-o"])
+        .arg(&refused)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
+    assert!(
+        stderr_of(&o).contains("--kernel calibration cannot render this scene"),
+        "{}",
+        stderr_of(&o)
+    );
+    assert!(!refused.exists());
+
+    // `profile`: the calibration kernel's rows beside the megakernel's,
+    // never the best one, never the one saved.
+    let (csv_path, cache) = (dir.path().join("p.csv"), dir.path().join("cache"));
+    whitted()
+        .env("XDG_CACHE_HOME", &cache)
+        .args(["profile", "--accel", "grid", "--workgroups", "8x8,16x4"])
+        .args([
+            "--tiles",
+            "full",
+            "--kernels",
+            "mega,calibration",
+            "--repeat",
+            "1",
+        ])
+        .args(["--save", "--csv"])
+        .arg(&csv_path)
+        .arg(&scene)
+        .assert()
+        .success();
+    let rows: Vec<csv::StringRecord> = csv::Reader::from_path(&csv_path)
+        .unwrap()
+        .records()
+        .map(|x| x.unwrap())
+        .collect();
+    // Columns: kernel, …, best (9), refused (10).
+    assert_eq!(rows.len(), 4);
+    assert!(rows.iter().all(|r| r[10].is_empty()), "{rows:?}");
+    let best: Vec<_> = rows.iter().filter(|r| &r[9] == "true").collect();
+    assert_eq!(best.len(), 1);
+    assert_eq!(&best[0][0], "mega");
+    assert_eq!(rows.iter().filter(|r| &r[0] == "calibration").count(), 2);
+    let saved = std::fs::read_dir(cache.join("whitted/profiles"))
+        .unwrap()
+        .map(|e| std::fs::read_to_string(e.unwrap().path()).unwrap())
+        .collect::<Vec<_>>();
+    assert_eq!(saved.len(), 1);
+    assert!(
+        saved[0].contains("mega") && !saved[0].contains("calibration"),
+        "{}",
+        saved[0]
+    );
 }

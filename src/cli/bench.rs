@@ -71,7 +71,9 @@ pub struct BenchArgs {
     /// backend once per kernel, the wavefront labelled e.g.
     /// gpu:llvmpipe/wavefront; default: mega only (`render --kernel`).
     /// The wavefront has only the exact arithmetic: with --gpu-math fast
-    /// that pair is not run.
+    /// that pair is not run. `calibration` (labelled .../calibration) is
+    /// the plain grid tracer for opaque sphere fields (docs/profiling.md);
+    /// it fails on other scenes.
     #[arg(long, value_enum, value_delimiter = ',')]
     pub kernels: Vec<crate::gpu::GpuKernel>,
     /// CPU packet widths to time (comma-separated, e.g. 1,8): the cpu and
@@ -269,17 +271,17 @@ fn engines(a: &BenchArgs) -> Result<Vec<Engine>> {
         let pairs = maths
             .iter()
             .flat_map(|&m| kernels.iter().map(move |&k| (m, k)));
-        // The wavefront has no fast arithmetic (`render` refuses the pair).
-        for (math, kernel) in
-            pairs.filter(|&(m, k)| !(m == GpuMath::Fast && k == GpuKernel::Wavefront))
+        // Only the megakernel has fast arithmetic (`render` refuses the
+        // wavefront's; the calibration kernel has no `precise` to drop).
+        for (math, kernel) in pairs.filter(|&(m, k)| !(m == GpuMath::Fast && k != GpuKernel::Mega))
         {
             // The exact megakernel keeps the plain label (the default, as before).
             let mut label = match math {
                 GpuMath::Exact => base.clone(),
                 GpuMath::Fast => format!("{base}/fast"),
             };
-            if kernel == GpuKernel::Wavefront {
-                label = format!("{label}/wavefront");
+            if kernel != GpuKernel::Mega {
+                label = format!("{label}/{}", kernel.name());
             }
             let gpu_math = (b == "gpu").then_some(math);
             let gpu_kernel = (b == "gpu" && kernel != GpuKernel::Mega).then_some(kernel);

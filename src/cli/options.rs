@@ -239,6 +239,9 @@ pub struct GpuArgs {
     /// shade and spawn, shadow, combine, resolve: several dispatches per
     /// depth, the queues compacted). The same image; exact arithmetic
     /// only for the wavefront (docs/gpu.md, "Megakernel and wavefront").
+    /// `calibration`: not the scene's image but the yardstick, a plain
+    /// grid tracer for fields of opaque spheres that traces the same rays
+    /// (other scenes are refused; docs/profiling.md).
     /// [default: mega, or the kernel `whitted profile --kernels ... --save`
     /// stored for the device; -v says so]
     #[arg(long, value_enum, value_name = "KERNEL")]

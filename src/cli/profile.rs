@@ -26,7 +26,9 @@ pub struct ProfileArgs {
     pub tiles: Vec<u32>,
     /// GPU kernels to profile (comma-separated, e.g. mega,wavefront): every
     /// shape and tile once per kernel; default: the one --kernel names
-    /// (mega). With --save the winner's kernel is stored too.
+    /// (mega). With --save the winner's kernel is stored too. `calibration`
+    /// (a plain grid tracer for opaque sphere fields) shows the yardstick
+    /// against the best of the others, and is never the one saved.
     #[arg(long, value_enum, value_delimiter = ',', value_name = "KERNEL,...")]
     pub kernels: Vec<crate::gpu::GpuKernel>,
     /// Timed renders per combination, after one warm-up each.

@@ -592,6 +592,12 @@ pub enum GpuKernel {
     /// Queues of rays processed stage by stage, one dispatch per stage
     /// and depth (`shaders/wavefront.comp`; exact arithmetic only).
     Wavefront,
+    /// Not the scene's image: the plain grid tracer
+    /// (`shaders/calibration.comp`) the megakernel is measured against
+    /// (docs/profiling.md, "A plain grid tracer as the yardstick"). The
+    /// same rays on fields of opaque spheres under the grid, other
+    /// pixels; other scenes are refused (`calibration_refusal`).
+    Calibration,
 }
 
 impl GpuKernel {
@@ -600,7 +606,33 @@ impl GpuKernel {
         match self {
             GpuKernel::Mega => "mega",
             GpuKernel::Wavefront => "wavefront",
+            GpuKernel::Calibration => "calibration",
         }
+    }
+}
+
+/// Why the calibration kernel cannot render `packed`, or `None` when it
+/// can: it models the grid, bounded spheres, reflection and light falloff
+/// only (`supported` in shaders/calibration.comp, which paints any other
+/// scene magenta).
+pub fn calibration_refusal(packed: &Packed) -> Option<String> {
+    use crate::constants::{
+        ACCEL_GRID, FEAT_FALLOFF, FEAT_REFLECT, FEAT_SPHERE, FLAG_SPD_COUNTING,
+    };
+    let g = &packed.globals;
+    let extra = g.trace[1] & !(FEAT_SPHERE | FEAT_REFLECT | FEAT_FALLOFF);
+    if g.flags[1] != ACCEL_GRID {
+        Some("it walks the grid only: add --accel grid".into())
+    } else if g.counts[0] != g.counts[1] {
+        Some("the scene has unbounded primitives (planes, unclipped quadrics or giants such as a floor)".into())
+    } else if extra != 0 {
+        Some(format!(
+            "it models spheres, reflection and light falloff only (the scene's other features: {extra:#x})"
+        ))
+    } else if g.flags[0] & FLAG_SPD_COUNTING != 0 {
+        Some("it does not count rays the SPD's way: drop --preset spd".into())
+    } else {
+        None
     }
 }
 
@@ -1373,6 +1405,28 @@ impl Gpu {
                 ));
             }
             return self.guarded(|| self.render_wavefront(packed, opts, progress));
+        }
+        if opts.kernel == GpuKernel::Calibration {
+            if let Some(why) = calibration_refusal(packed) {
+                return Err(GpuError::Setting(format!(
+                    "--kernel calibration cannot render this scene: {why}"
+                )));
+            }
+            if std::env::var_os("WHITTED_RENDER_SPV").is_some_and(|v| !v.is_empty()) {
+                return Err(GpuError::Setting(
+                    "WHITTED_RENDER_SPV replaces the megakernel, and --kernel calibration is \
+                     another kernel: unset the variable or use --kernel mega"
+                        .into(),
+                ));
+            }
+            // One lattice point an invocation; no arithmetic variants.
+            let opts = GpuOptions {
+                lane_pixels: 1,
+                ..opts.clone()
+            };
+            return self.guarded(|| {
+                self.render_with(shaders::CALIBRATION, "calibration", packed, &opts, progress)
+            });
         }
         if let Some(variant) = render_variant()? {
             return self

@@ -27,6 +27,5 @@ pub const WF_COMBINE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefron
 pub const WF_RESOLVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/wavefront_resolve.spv"));
 /// `shaders/calibration.comp`: a plain grid tracer for opaque sphere
 /// fields, the yardstick the exact kernel is measured against on a device
-/// (docs/profiling.md). Not used by `render`; run through
-/// `WHITTED_RENDER_SPV`.
+/// (docs/profiling.md): `--kernel calibration`.
 pub const CALIBRATION: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/calibration.spv"));
