@@ -2986,6 +2986,24 @@ fn the_calibration_kernel_traces_the_same_rays() {
         stderr_of(&o)
     );
     assert!(!refused.exists());
+    // The same field with a glass material: named.
+    field.materials[1].kt = glam::DVec3::splat(0.5);
+    let glass = dir.path().join("glass.nff");
+    std::fs::write(&glass, whitted::export::to_nff(&field).unwrap()).unwrap();
+    let o = whitted()
+        .args(["render", "--backend", "gpu", "--accel", "grid", "--kernel"])
+        .args(["calibration", "-o"])
+        .arg(&refused)
+        .arg(&glass)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
+    assert!(
+        stderr_of(&o).contains("the scene has refraction"),
+        "{}",
+        stderr_of(&o)
+    );
+    assert!(!refused.exists());
 
     // `profile`: the calibration kernel's rows beside the megakernel's,
     // never the best one, never the one saved.

@@ -159,10 +159,12 @@ pub fn run(a: ProfileArgs, ui: Ui) -> Result<u8> {
         crate::plot::draw_heat_map(&profile::heat_map(&rows, &title), p).map_err(user)?;
     }
     if a.save {
-        let best = rows
-            .iter()
-            .find(|r| r.best)
-            .ok_or_else(|| user(anyhow!("--save: the device refused every shape")))?;
+        let best = rows.iter().find(|r| r.best).ok_or_else(|| {
+            user(anyhow!(
+                "--save: no shape of a kernel that renders the scene's image ran (the device \
+                     refused them, or only --kernels calibration was asked, which is never saved)"
+            ))
+        })?;
         let saved = Saved {
             device: info.name.clone(),
             driver: info.driver.clone(),

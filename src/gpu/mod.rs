@@ -626,8 +626,33 @@ pub fn calibration_refusal(packed: &Packed) -> Option<String> {
     } else if g.counts[0] != g.counts[1] {
         Some("the scene has unbounded primitives (planes, unclipped quadrics or giants such as a floor)".into())
     } else if extra != 0 {
+        // FEAT_* bit k, by name.
+        const NAMES: [&str; 13] = [
+            "spheres",
+            "planes",
+            "triangles",
+            "polygons",
+            "boxes",
+            "quadrics",
+            "cones",
+            "reflection",
+            "refraction",
+            "absorption",
+            "transmission highlights",
+            "light falloff",
+            "smooth normals",
+        ];
+        let other: Vec<&str> = (0..NAMES.len())
+            .filter(|&k| extra & (1 << k) != 0)
+            .map(|k| NAMES[k])
+            .collect();
         Some(format!(
-            "it models spheres, reflection and light falloff only (the scene's other features: {extra:#x})"
+            "it models spheres, reflection and light falloff only, and the scene has {}",
+            if other.is_empty() {
+                format!("features {extra:#x}")
+            } else {
+                other.join(", ")
+            }
         ))
     } else if g.flags[0] & FLAG_SPD_COUNTING != 0 {
         Some("it does not count rays the SPD's way: drop --preset spd".into())
