@@ -2972,38 +2972,33 @@ fn the_calibration_kernel_traces_the_same_rays() {
         std::fs::read(&by_flag).unwrap(),
         std::fs::read(&by_env).unwrap()
     );
-    let refused = dir.path().join("refused.png");
-    let o = whitted()
-        .args(["render", "scenes/showcase.toml", "--backend", "gpu"])
-        .args(["--kernel", "calibration", "-o"])
-        .arg(&refused)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
-    assert!(
-        stderr_of(&o).contains("--kernel calibration cannot render this scene"),
-        "{}",
-        stderr_of(&o)
+    let refused = |scene: &std::path::Path, why: &str| {
+        let png = dir.path().join("refused.png");
+        let o = whitted()
+            .args(["render", "--backend", "gpu", "--accel", "grid", "--kernel"])
+            .args(["calibration", "-o"])
+            .arg(&png)
+            .arg(scene)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
+        let err = stderr_of(&o);
+        assert!(
+            err.contains("--kernel calibration cannot render this scene"),
+            "{err}"
+        );
+        assert!(err.contains(why), "{err}");
+        assert!(!png.exists());
+    };
+    refused(
+        &common::repo().join("scenes/showcase.toml"),
+        "unbounded primitives",
     );
-    assert!(!refused.exists());
     // The same field with a glass material: named.
     field.materials[1].kt = glam::DVec3::splat(0.5);
     let glass = dir.path().join("glass.nff");
     std::fs::write(&glass, whitted::export::to_nff(&field).unwrap()).unwrap();
-    let o = whitted()
-        .args(["render", "--backend", "gpu", "--accel", "grid", "--kernel"])
-        .args(["calibration", "-o"])
-        .arg(&refused)
-        .arg(&glass)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));
-    assert!(
-        stderr_of(&o).contains("the scene has refraction"),
-        "{}",
-        stderr_of(&o)
-    );
-    assert!(!refused.exists());
+    refused(&glass, "the scene has refraction");
 
     // `profile`: the calibration kernel's rows beside the megakernel's,
     // never the best one, never the one saved.
