@@ -88,10 +88,9 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
     if a.backend == Backend::Cpu && a.gpu.gpu_math == crate::gpu::GpuMath::Fast {
         log::warn!("--gpu-math fast has no effect with --backend cpu");
     }
-    if let Some(k) = a.gpu.kernel.filter(|&k| k != crate::gpu::GpuKernel::Mega) {
-        if a.backend == Backend::Cpu {
-            log::warn!("--kernel {} has no effect with --backend cpu", k.name());
-        }
+    let other_kernel = a.gpu.kernel.filter(|&k| k != crate::gpu::GpuKernel::Mega);
+    if let Some(k) = other_kernel.filter(|_| a.backend == Backend::Cpu) {
+        log::warn!("--kernel {} has no effect with --backend cpu", k.name());
     }
     // Surveying the Vulkan devices for `auto` overlaps reading and packing.
     let mut survey = run::DeviceSurvey::start(a.backend, a.precision, a.gpu.device);

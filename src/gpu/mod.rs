@@ -682,6 +682,9 @@ fn read_counts(counters: &Buffer) -> Result<(RayStats, crate::trace::query::Work
     Ok((stats, work, c[5]))
 }
 
+/// The variable naming a megakernel variant (`render_variant`).
+const RENDER_SPV: &str = "WHITTED_RENDER_SPV";
+
 /// `WHITTED_RENDER_SPV=FILE`: a SPIR-V module to render with instead of
 /// the built-in kernel (either `--gpu-math`), for trying a variant of
 /// the shader without rebuilding (docs/profiling.md, "Trying a kernel
@@ -690,19 +693,18 @@ fn read_counts(counters: &Buffer) -> Result<(RayStats, crate::trace::query::Work
 /// constants. Unset or empty: None. An unreadable file or one that is
 /// not SPIR-V is a setting error (exit 2).
 pub fn render_variant() -> Result<Option<Vec<u8>>, GpuError> {
-    const VAR: &str = "WHITTED_RENDER_SPV";
-    let Some(path) = std::env::var_os(VAR).filter(|v| !v.is_empty()) else {
+    let Some(path) = std::env::var_os(RENDER_SPV).filter(|v| !v.is_empty()) else {
         return Ok(None);
     };
     let shown = std::path::Path::new(&path).display().to_string();
     let bytes = std::fs::read(&path)
-        .map_err(|e| GpuError::Setting(format!("{VAR}={shown}: cannot read it: {e}")))?;
+        .map_err(|e| GpuError::Setting(format!("{RENDER_SPV}={shown}: cannot read it: {e}")))?;
     if bytes.len() < 20 || bytes.len() % 4 != 0 || bytes[..4] != 0x0723_0203u32.to_le_bytes() {
         return Err(GpuError::Setting(format!(
-            "{VAR}={shown}: not a SPIR-V module (little-endian, starting with 0x07230203)"
+            "{RENDER_SPV}={shown}: not a SPIR-V module (little-endian, starting with 0x07230203)"
         )));
     }
-    log::info!("rendering with the kernel in {shown} ({VAR})");
+    log::info!("rendering with the kernel in {shown} ({RENDER_SPV})");
     Ok(Some(bytes))
 }
 
@@ -1416,20 +1418,10 @@ impl Gpu {
     ) -> Result<Frame, GpuError> {
         let by_device = opts.lane_pixels == 0;
         let opts = &self.resolved(packed, opts);
-        if opts.kernel == GpuKernel::Wavefront {
-            if opts.math != GpuMath::Exact {
-                return Err(GpuError::Setting(
-                    "--kernel wavefront has only the exact arithmetic: drop --gpu-math fast".into(),
-                ));
-            }
-            if std::env::var_os("WHITTED_RENDER_SPV").is_some_and(|v| !v.is_empty()) {
-                return Err(GpuError::Setting(
-                    "WHITTED_RENDER_SPV replaces the megakernel, and --kernel wavefront runs its \
-                     own stages: unset the variable or use --kernel mega"
-                        .into(),
-                ));
-            }
-            return self.guarded(|| self.render_wavefront(packed, opts, progress));
+        if opts.kernel == GpuKernel::Wavefront && opts.math != GpuMath::Exact {
+            return Err(GpuError::Setting(
+                "--kernel wavefront has only the exact arithmetic: drop --gpu-math fast".into(),
+            ));
         }
         if opts.kernel == GpuKernel::Calibration {
             if let Some(why) = calibration_refusal(packed) {
@@ -1437,13 +1429,25 @@ impl Gpu {
                     "--kernel calibration cannot render this scene: {why}"
                 )));
             }
-            if std::env::var_os("WHITTED_RENDER_SPV").is_some_and(|v| !v.is_empty()) {
-                return Err(GpuError::Setting(
-                    "WHITTED_RENDER_SPV replaces the megakernel, and --kernel calibration is \
-                     another kernel: unset the variable or use --kernel mega"
-                        .into(),
-                ));
-            }
+        }
+        // The variable replaces the megakernel's module only.
+        if opts.kernel != GpuKernel::Mega
+            && std::env::var_os(RENDER_SPV).is_some_and(|v| !v.is_empty())
+        {
+            let why = match opts.kernel {
+                GpuKernel::Wavefront => "runs its own stages",
+                _ => "is another kernel",
+            };
+            return Err(GpuError::Setting(format!(
+                "{RENDER_SPV} replaces the megakernel, and --kernel {} {why}: unset the \
+                 variable or use --kernel mega",
+                opts.kernel.name()
+            )));
+        }
+        if opts.kernel == GpuKernel::Wavefront {
+            return self.guarded(|| self.render_wavefront(packed, opts, progress));
+        }
+        if opts.kernel == GpuKernel::Calibration {
             // One lattice point an invocation; no arithmetic variants.
             let opts = GpuOptions {
                 lane_pixels: 1,
