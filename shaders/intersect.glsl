@@ -217,6 +217,34 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
     float px = p[i0];
     float py = p[i1];
     uint base = prim.data;
+    if (CONVEX_POLYGONS) {
+        // Every edge in order, each vertex read once, two to a read (the
+        // vertices lie two to a vec4): the arithmetic of the loop below
+        // for a convex polygon (and of the CPU mirror's convex branch),
+        // without its cells, bands and crossings.
+        vec2 a = polyVertex(base, count - 1u);
+        bool pos = false;
+        bool neg = false;
+        for (uint j = 0u; j < count; j += 2u) {
+            vec4 pair = extra[base + j / 2u];
+            for (uint k = 0u; k < 2u; k++) {
+                vec2 c = k == 0u ? pair.xy : pair.zw;
+                if (j + k < count) {
+                    PRECISE float ex = c.x - a.x;
+                    PRECISE float ey = c.y - a.y;
+                    PRECISE float ee = ex * (py - a.y) - ey * (px - a.x);
+                    pos = pos || ee > 0.0;
+                    neg = neg || ee < 0.0;
+                    a = c;
+                }
+            }
+        }
+        if (!(pos && neg)) {
+            h = ph;
+            return true;
+        }
+        return false;
+    }
     uint bands = uint(prim.c.z);
     bool banded = !convex && bands > 0u;
     uint lists = base + (count + 1u) / 2u;

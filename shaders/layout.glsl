@@ -170,6 +170,23 @@ const bool SHADOW_CACHE = (STRUCTURE & 0x80080000u) != 0x00080000u;
 // docs/profiling.md). Never under STRUCTURE_ANY.
 const bool NO_UNBOUNDED = (STRUCTURE & 0x80100000u) == 0x00100000u;
 
+// Bits 22-28: the kinds of the unbounded primitives (g.counts.x to
+// g.counts.y), which query_unbounded tests with only these kinds' code,
+// as the walks test theirs with BOUNDED_KINDS': the floor polygon of the
+// random spheres, tested by every ray and feeler, no longer runs a sphere
+// test beside its own. All kinds under STRUCTURE_ANY.
+const uint UNBOUNDED_KINDS = (STRUCTURE >> 22) & 127u;
+
+// Bit 21: every polygon of the scene is convex (src/gpu/mod.rs,
+// layout_key), and convex polygons have neither edge bands nor cells
+// (src/pack/polygon.rs), so `polygon` compiles to the all-edges-on-one-side
+// loop alone, each vertex read once, as the CPU mirror's convex branch
+// does. llvmpipe runs the cells' lookup, the band lists and the crossings
+// test, masked, on every polygon test otherwise, each read of `extra` a
+// loop over the lanes: the floor polygon of the random spheres is tested
+// by every ray and feeler (docs/profiling.md). Never under STRUCTURE_ANY.
+const bool CONVEX_POLYGONS = (STRUCTURE & 0x80200000u) == 0x00200000u;
+
 // Bit 11: the primitives, the BVH and the grid's (or octree's) cell and
 // reference lists are read through bindings 20 to 23: the buffers of
 // bindings 1, 11, 5 and 6 seen as uniform texel buffers (16-byte texels,

@@ -128,7 +128,10 @@ bool query_prim_kinds(inout Query q, Prim prim, uint i, Ray ray, RayPre pre, uin
     Hit h;
     if (intersect_kinds(prim, ray, pre, q.bound, h, kinds)) {
         if (q.shadow) {
-            vec3 kt = materials[prim_material(prim)].kt.xyz;
+            // Without FEAT_REFRACT no material lets light through (every
+            // k_t is 0): no read of the materials, a per-lane loop on
+            // llvmpipe that every test ran, masked.
+            vec3 kt = HAS_REFRACT ? materials[prim_material(prim)].kt.xyz : vec3(0.0);
             if (max_elem(kt) > 0.0 && !(h.t >= q.lo && h.t < q.hi)) {
                 return false;
             }
@@ -171,7 +174,7 @@ void query_unbounded(inout Query q, Ray ray, RayPre pre) {
         return;
     }
     for (uint i = g.counts.x; i < g.counts.y; i++) {
-        if (query_prim(q, load_prim(i), i, ray, pre)) {
+        if (query_prim_kinds(q, load_prim(i), i, ray, pre, UNBOUNDED_KINDS)) {
             break;
         }
     }

@@ -11,7 +11,7 @@ mod common;
 use assert_cmd::Command;
 use std::collections::HashMap;
 use std::mem::{offset_of, size_of};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 use whitted::cpu::{self, Frame};
 use whitted::gpu::loops::{self, Driver, LoopLoad};
@@ -811,6 +811,96 @@ fn walks_compile_the_kinds_their_structure_holds() {
         unbounded[0] > 0 && unbounded[1] > 0,
         "scenes with and without unbounded primitives: {unbounded:?}"
     );
+}
+
+/// Bits 21 (`CONVEX_POLYGONS`) and 22-28 (`UNBOUNDED_KINDS`) of
+/// specialization constant 3: set from the packed scene (every polygon
+/// convex; the kinds of the unbounded primitives), and the kernel they
+/// compile renders the mirror's image (bit for bit on lavapipe): a convex
+/// pentagon floor (a giant, an odd vertex count for the two-at-a-time
+/// vertex reads) under spheres, with and without a glass sphere (whose
+/// feelers read k_t) and with a concave polygon beside it (bit 21 clear:
+/// the general test).
+#[test]
+fn convex_polygons_and_unbounded_kinds_compile_only_what_the_scene_needs() {
+    use whitted::constants::{KIND_POLYGON, KIND_SPHERE};
+    use whitted::gpu::{convex_polygons, layout_key, unbounded_kinds};
+    let scene = |glass: bool, concave: bool| {
+        let mut t = String::from(
+            "b 0.1 0.1 0.2\nv\nfrom 1 -7 4\nat 0 0 0\nup 0 0 1\nangle 45\nhither 0.001\n\
+             resolution 64 48\nl 3 -4 6\nl -4 -2 5\n\
+             f 0.8 0.8 0.7 0.6 0.3 10 0 1\n\
+             p 5\n-30 -20 -1\n20 -30 -1\n30 10 -1\n0 30 -1\n-30 10 -1\n\
+             f 0.9 0.3 0.2 0.7 0.4 20 0 1\n",
+        );
+        for i in 0..12 {
+            let a = f64::from(i) * 0.52;
+            t += &format!(
+                "s {:.3} {:.3} {:.3} 0.45\n",
+                2.0 * a.cos(),
+                2.0 * a.sin(),
+                0.3 * a
+            );
+        }
+        if glass {
+            t += "f 0.9 0.9 1 0.1 0.5 60 0.8 1.5\ns 0.2 -1.5 0.4 0.7\n";
+        }
+        if concave {
+            // An arrow head, upright behind the spheres.
+            t += "f 0.2 0.7 0.3 0.8 0.2 5 0 1\np 4\n-1.5 3 -1\n0 3 0.2\n1.5 3 -1\n0 3 2.5\n";
+        }
+        t
+    };
+    for (glass, concave) in [(false, false), (true, false), (false, true)] {
+        for accel in [Accel::Grid, Accel::Bvh] {
+            let name = format!("glass {glass}, concave {concave}, {accel:?}");
+            let s = whitted::scene::parse_str(&scene(glass, concave), Path::new("test.nff"))
+                .unwrap_or_else(|e| panic!("{e}"));
+            let p = whitted::pack::pack(
+                &s,
+                &Settings {
+                    accel,
+                    ..common::small(64, 48)
+                },
+            )
+            .unwrap();
+            let (lo, hi) = (p.globals.counts[0] as usize, p.globals.counts[1] as usize);
+            let kind = |q: &Prim| q.kind_mat & 15;
+            let want = p.prims[lo..hi].iter().fold(0, |k, q| k | 1 << kind(q));
+            assert_eq!(
+                want,
+                1 << KIND_POLYGON,
+                "{name}: the floor alone is unbounded"
+            );
+            assert!(
+                p.prims[..lo].iter().any(|q| kind(q) == KIND_SPHERE),
+                "{name}: spheres in the structure"
+            );
+            assert_eq!(unbounded_kinds(&p), want, "{name}");
+            assert_eq!(convex_polygons(&p), !concave, "{name}");
+            let key = layout_key(&GpuOptions::default(), &p);
+            assert_eq!(
+                key >> 21 & 1,
+                u32::from(!concave),
+                "{name}: CONVEX_POLYGONS"
+            );
+            assert_eq!(key >> 22 & 127, want, "{name}: UNBOUNDED_KINDS");
+            assert_eq!(key >> 31, 0, "{name}: never the run-time default");
+            let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
+                return;
+            };
+            assert!(
+                c.stats.shadow > 0 && c.stats.reflect > 0,
+                "{name}: {:?}",
+                c.stats
+            );
+            assert_eq!(glass, c.stats.refract > 0, "{name}: refraction");
+            assert_close(&name, &c, &g);
+            if common::gpu().is_some_and(|d| d.info().kind == DeviceKind::Cpu) {
+                assert_eq!(c.stats, g.stats, "{name}: ray counts");
+            }
+        }
+    }
 }
 
 /// The BVH the kernels read (`gpu::bvh_for_gpu`): each child's link and

@@ -977,12 +977,14 @@ pub fn structure_key(flags: [u32; 4]) -> u32 {
     accel | walk << 4 | light_buffers << 8
 }
 
-/// Bits 9 to 20 of specialization constant 3 (shaders/layout.glsl):
+/// Bits 9 to 28 of specialization constant 3 (shaders/layout.glsl):
 /// `PRIMS_SOA` and `CELLS_PAIRS` (the primitives' layout and the grid
 /// cells' for `p`), `TEXELS` (the reads), `BOUNDED_KINDS`, bit 19 no
 /// shadow cache (`opts.shadow_cache` Off; Auto counts as On here:
 /// `Gpu::resolved` settles it first) and bit 20 no unbounded primitives
-/// (`NO_UNBOUNDED`: `query_unbounded` compiles out).
+/// (`NO_UNBOUNDED`: `query_unbounded` compiles out), bit 21 every polygon
+/// convex (`CONVEX_POLYGONS`: `convex_polygons`), bits 22-28 the unbounded
+/// primitives' kinds (`UNBOUNDED_KINDS`: `unbounded_kinds`).
 pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     let prims = match opts.prim_layout {
         PrimLayout::Aos => 0,
@@ -994,6 +996,20 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
         | bounded_kinds(p) << 12
         | u32::from(opts.shadow_cache == GpuShadowCache::Off) << 19
         | u32::from(p.globals.counts[0] >= p.globals.counts[1]) << 20
+        | u32::from(convex_polygons(p)) << 21
+        | unbounded_kinds(p) << 22
+}
+
+/// Bit 21 of specialization constant 3 (`CONVEX_POLYGONS` in
+/// shaders/layout.glsl): every polygon of the scene is convex, so none
+/// has edge bands or cells (`pack::polygon`) and the shader's polygon
+/// test compiles to its convex loop alone. True for a scene without
+/// polygons too.
+pub fn convex_polygons(p: &crate::pack::Packed) -> bool {
+    p.prims
+        .iter()
+        .filter(|q| q.kind() == crate::constants::KIND_POLYGON)
+        .all(|q| q.b[2] != 0.0 && q.c[3] == 0.0)
 }
 
 /// Specialization constants 2 and 3 of every kernel that walks a scene
@@ -1015,6 +1031,17 @@ pub fn scene_spec(packed: &crate::pack::Packed, opts: &GpuOptions) -> [(u32, u32
 pub fn bounded_kinds(p: &crate::pack::Packed) -> u32 {
     let n = (p.globals.counts[0] as usize).min(p.prims.len());
     crate::pack::layout::Prim::kind_bits(&p.prims[..n]) & 127
+}
+
+/// Bits 22-28 of specialization constant 3 (`UNBOUNDED_KINDS` in
+/// shaders/layout.glsl): the kinds of the unbounded primitives (`counts[0]`
+/// to `counts[1]`), which `query_unbounded` tests with only those kinds'
+/// code.
+pub fn unbounded_kinds(p: &crate::pack::Packed) -> u32 {
+    let n = p.prims.len();
+    let lo = (p.globals.counts[0] as usize).min(n);
+    let hi = (p.globals.counts[1] as usize).clamp(lo, n);
+    crate::pack::layout::Prim::kind_bits(&p.prims[lo..hi]) & 127
 }
 
 /// A render's image size and sample lattice (`Gpu::lattice`): pixels w×h,
