@@ -265,7 +265,7 @@ void grid_traverse(Ray ray, RayPre pre, inout Query q) {
             end = cell_start_at(ci + 1u);
             skip = start == end ? int(cell_skip(ci)) : 0;
         }
-        if (skip >= 2) {
+        if (!NO_JUMPS && skip >= 2) {
             int jaxis;
             float t_jump = dda_jump_exit(dda, skip - 1, jaxis);
             if (q.t <= t_jump || t_jump >= dda.t_end || !dda_jump(dda, skip - 1, t_jump, jaxis)) {

@@ -903,6 +903,49 @@ fn convex_polygons_and_unbounded_kinds_compile_only_what_the_scene_needs() {
     }
 }
 
+/// Bit 29 of specialization constant 3 (`NO_JUMPS`): a dense field's grid
+/// keeps no skip distance over 1 (`pack::grid::jumps_pay`), so the kernel
+/// compiles the jump out; a sparse one (SPD balls under the grid) keeps
+/// its jumps and the bit clear. Both render the mirror's image, ray
+/// counts and work (bit for bit on lavapipe).
+#[test]
+fn dense_grids_walk_without_jumps() {
+    use whitted::gpu::{grid_jumps, layout_key};
+    let field = whitted::gen::random_spheres(3000, 5);
+    let balls = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Balls, Some(3)).unwrap();
+    let cases = [
+        ("3000 spheres grid", &field, Accel::Grid, false),
+        ("3000 spheres hybrid", &field, Accel::Hybrid, false),
+        ("balls grid", &balls, Accel::Grid, true),
+    ];
+    for (name, scene, accel, jumps) in cases {
+        let p = whitted::pack::pack(
+            scene,
+            &Settings {
+                accel,
+                ..common::small(64, 48)
+            },
+        )
+        .unwrap();
+        let n = p.globals.grid_dims[3] as usize;
+        let skip = |ci: usize| (p.cell_start[n + 1 + ci / 4] >> (8 * (ci % 4))) & 255;
+        let empty = (0..n).filter(|&ci| skip(ci) > 0).count();
+        // (The hybrid's coarser grid may have none.)
+        assert!(empty > 0 || accel == Accel::Hybrid, "{name}: no empty cell");
+        assert_eq!(grid_jumps(&p), jumps, "{name}");
+        assert_eq!((0..n).any(|ci| skip(ci) >= 2), jumps, "{name}");
+        let key = layout_key(&GpuOptions::default(), &p);
+        assert_eq!(key >> 29 & 1, u32::from(!jumps), "{name}: NO_JUMPS");
+        let Some((c, g)) = render_both(&p, &GpuOptions::default()) else {
+            return;
+        };
+        assert_close(name, &c, &g);
+        if common::gpu().is_some_and(|d| d.info().kind == DeviceKind::Cpu) {
+            assert_eq!(c.stats, g.stats, "{name}: ray counts");
+        }
+    }
+}
+
 /// The BVH the kernels read (`gpu::bvh_for_gpu`): each child's link and
 /// count in one word (the link below `BVH_COUNT_SHIFT` bits, the count
 /// above, the count field zero), the boxes as packed, for a BVH with

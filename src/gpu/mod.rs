@@ -977,14 +977,15 @@ pub fn structure_key(flags: [u32; 4]) -> u32 {
     accel | walk << 4 | light_buffers << 8
 }
 
-/// Bits 9 to 28 of specialization constant 3 (shaders/layout.glsl):
+/// Bits 9 to 29 of specialization constant 3 (shaders/layout.glsl):
 /// `PRIMS_SOA` and `CELLS_PAIRS` (the primitives' layout and the grid
 /// cells' for `p`), `TEXELS` (the reads), `BOUNDED_KINDS`, bit 19 no
 /// shadow cache (`opts.shadow_cache` Off; Auto counts as On here:
 /// `Gpu::resolved` settles it first) and bit 20 no unbounded primitives
 /// (`NO_UNBOUNDED`: `query_unbounded` compiles out), bit 21 every polygon
 /// convex (`CONVEX_POLYGONS`: `convex_polygons`), bits 22-28 the unbounded
-/// primitives' kinds (`UNBOUNDED_KINDS`: `unbounded_kinds`).
+/// primitives' kinds (`UNBOUNDED_KINDS`: `unbounded_kinds`), bit 29 no
+/// cell of the grid to jump from (`NO_JUMPS`: `grid_jumps`).
 pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
     let prims = match opts.prim_layout {
         PrimLayout::Aos => 0,
@@ -998,6 +999,23 @@ pub fn layout_key(opts: &GpuOptions, p: &crate::pack::Packed) -> u32 {
         | u32::from(p.globals.counts[0] >= p.globals.counts[1]) << 20
         | u32::from(convex_polygons(p)) << 21
         | unbounded_kinds(p) << 22
+        | u32::from(!grid_jumps(p)) << 29
+}
+
+/// Whether the scene's grid (under the grid or the hybrid) has a cell a
+/// walk may jump from (skip distance 2 or more; `pack::grid::jumps_pay`
+/// caps a dense grid's at 1). Without one, bit 29 of specialization
+/// constant 3 (`NO_JUMPS` in shaders/layout.glsl) compiles the jump out.
+pub fn grid_jumps(p: &crate::pack::Packed) -> bool {
+    let accel = p.globals.flags[1] & 15;
+    if accel != crate::constants::ACCEL_GRID && accel != crate::constants::ACCEL_HYBRID {
+        return false;
+    }
+    let n = p.globals.grid_dims[3] as usize;
+    (0..n).any(|ci| {
+        let word = p.cell_start.get(n + 1 + ci / 4).copied().unwrap_or(0);
+        (word >> (8 * (ci % 4))) & 255 >= 2
+    })
 }
 
 /// Bit 21 of specialization constant 3 (`CONVEX_POLYGONS` in

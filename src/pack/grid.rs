@@ -468,7 +468,12 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
     }
     progress(Stage::File, 2 * n, 2 * n);
     drop(fill);
-    let skip = skip_distances(&counts, dims);
+    let mut skip = skip_distances(&counts, dims);
+    if !jumps_pay(&skip) {
+        for s in &mut skip {
+            *s = (*s).min(1);
+        }
+    }
     let mut cell_start = counts;
     cell_start.extend(skip.chunks(4).map(|c| {
         c.iter()
@@ -496,6 +501,25 @@ fn split_sizes<'a, T>(mut v: &'a mut [T], sizes: &[usize]) -> Vec<&'a mut [T]> {
         v = b;
     }
     out
+}
+
+/// A grid keeps its empty-space jumps only where at least this share of
+/// its cells can start one (skip distance 2 or more); in a denser grid
+/// every empty cell's distance is capped at 1, so the walks step through
+/// it (`build`, docs/method.md, "Empty-space jumps"). A
+/// field of random spheres has a few such cells in ten thousand, which
+/// its rays almost never meet, while a SIMD device that runs both sides
+/// of every branch (llvmpipe) paid the jump's code at every cell visit.
+pub const JUMP_CELLS_MIN_SHARE: f64 = 0.01;
+
+/// Whether a grid with these skip distances keeps its empty-space jumps:
+/// at least `JUMP_CELLS_MIN_SHARE` of its cells can start one (distance 2
+/// or more). Otherwise `build` caps every distance at 1 and no walk
+/// jumps: the same hits, a few more cell steps in the rare empty cubes,
+/// and the shader's jump compiles out (`gpu::layout_key`, bit 29).
+pub fn jumps_pay(skip: &[u8]) -> bool {
+    let starts = skip.iter().filter(|&&s| s >= 2).count();
+    starts as f64 >= JUMP_CELLS_MIN_SHARE * skip.len() as f64
 }
 
 /// Empty-space distances ("proximity clouds", Cohen & Sheffer 1994): for
@@ -554,6 +578,18 @@ pub fn skip_distances(cell_start: &[u32], dims: [u32; 3]) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn jumps_pay_from_one_cell_in_a_hundred() {
+        // 1 000 cells: 9 that can start a jump is under 1 %, 10 is not.
+        let mut skip = vec![0u8; 1000];
+        skip[..50].fill(1);
+        skip[50..59].fill(2);
+        assert!(!jumps_pay(&skip));
+        skip[59] = 7;
+        assert!(jumps_pay(&skip));
+        assert!(jumps_pay(&[15; 8]), "an empty grid");
+    }
 
     #[test]
     fn skip_distances_are_chessboard_distances_to_listed_cells() {
