@@ -148,7 +148,7 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
         }
         // trace_ray's loop body (trace.glsl), unchanged: keep the two alike.
         sp -= 1u;
-        Entry e = stack[sp];
+        Entry e = stack[stack_slot(sp)];
         Ray r = Ray(e.o, e.d);
         RayPre pre = ray_pre(e.d);
         Hit h;
@@ -173,11 +173,11 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
         Entry rf;
         uint kids = spawn(e, sf, tr, rf);
         if ((kids & 1u) != 0u) {
-            stack[sp] = tr;
+            stack[stack_slot(sp)] = tr;
             sp += 1u;
         }
         if ((kids & 2u) != 0u) {
-            stack[sp] = rf;
+            stack[stack_slot(sp)] = rf;
             sp += 1u;
         }
     }

@@ -149,6 +149,14 @@ vec3 add_weighted(vec3 a, vec3 w, vec3 b) {
 // shaders/wavefront.comp, runs the same steps as separate dispatches;
 // render.comp's render_lane repeats this loop's body, between samples of
 // several points: a change here changes it there.)
+//
+// Without refraction (no FEAT_REFRACT) a hit spawns at most the reflected
+// ray, so the stack never holds more than one entry and every push and
+// pop is at slot 0 (stack_slot): constant indices, so the array becomes
+// plain registers. llvmpipe otherwise reads and writes a private array at
+// a varying index lane by lane, 13 words an entry.
+uint stack_slot(uint sp) { return HAS_REFRACT ? sp : 0u; }
+
 vec3 trace_ray(Ray ray) {
     Entry stack[STACK_SIZE];
     stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
@@ -156,7 +164,7 @@ vec3 trace_ray(Ray ray) {
     vec3 color = vec3(0.0);
     while (sp > 0u) {
         sp -= 1u;
-        Entry e = stack[sp];
+        Entry e = stack[stack_slot(sp)];
         Ray r = Ray(e.o, e.d);
         RayPre pre = ray_pre(e.d);
         Hit h;
@@ -185,11 +193,11 @@ vec3 trace_ray(Ray ray) {
         // walks it next: the same order; on lavapipe that was level,
         // docs/profiling.md, on the CPU level to 10 % faster: BENCHMARKS.md.)
         if ((kids & 1u) != 0u) {
-            stack[sp] = tr;
+            stack[stack_slot(sp)] = tr;
             sp += 1u;
         }
         if ((kids & 2u) != 0u) {
-            stack[sp] = rf;
+            stack[stack_slot(sp)] = rf;
             sp += 1u;
         }
     }
