@@ -1894,6 +1894,40 @@ fn the_host_names_what_drives_the_loops() {
     assert_eq!(loops::certain_cut(&p), None);
 }
 
+/// The longest cell list the host names after a cut is the grid's own:
+/// read from the ncells + 1 offsets only, not from the skip bytes packed
+/// after them (which it once read as offsets). Needs no device.
+#[test]
+fn the_host_reads_the_longest_cell_list_from_the_offsets() {
+    for (name, scene) in [
+        ("3000 spheres", whitted::gen::random_spheres(3000, 5)),
+        (
+            "balls",
+            whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Balls, Some(3)).unwrap(),
+        ),
+    ] {
+        let p = whitted::pack::pack(
+            &scene,
+            &Settings {
+                accel: Accel::Grid,
+                ..common::small(8, 8)
+            },
+        )
+        .unwrap();
+        let n = p.globals.grid_dims[3] as usize;
+        assert!(
+            p.cell_start.len() > n + 1,
+            "{name}: skip bytes after the offsets"
+        );
+        let longest = (0..n)
+            .map(|c| p.cell_start[c + 1] - p.cell_start[c])
+            .max()
+            .unwrap();
+        assert!(longest > 1, "{name}");
+        assert_eq!(LoopLoad::of(&p).cell_refs, longest, "{name}");
+    }
+}
+
 /// With light buffers on SPD gears at its default size (a few cells of
 /// far lights list hundreds of primitives: 981), the longest cell list is what
 /// the host names, with `--shadows plain` as the remedy; plain feelers on

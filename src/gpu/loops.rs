@@ -200,11 +200,15 @@ impl LoopLoad {
                 .unwrap_or(0)
         };
         let octree = p.structure() == crate::pack::Accel::Octree;
-        // The octree keeps its nodes where the grid keeps its offsets.
+        // The octree keeps its nodes where the grid keeps its offsets. The
+        // grid's ncells + 1 offsets only: the skip bytes after them are no
+        // offsets (read as such, they named a cell of 16 843 009
+        // primitives, four skips of 1 in one word).
         let cell_refs = if octree {
             p.accel.max_leaf
         } else {
-            longest(&p.cell_start)
+            let n = (g.grid_dims[3] as usize + 1).min(p.cell_start.len());
+            longest(&p.cell_start[..n])
         };
         let lb_refs = if g.flags[3] > 0 {
             longest(&p.lb_start)
