@@ -1011,11 +1011,12 @@ pub fn grid_jumps(p: &crate::pack::Packed) -> bool {
     if accel != crate::constants::ACCEL_GRID && accel != crate::constants::ACCEL_HYBRID {
         return false;
     }
+    // The skip bytes, four to a word after the ncells + 1 offsets (the
+    // last word's unused bytes are 0): a byte of 2 or more has a bit
+    // above its lowest.
     let n = p.globals.grid_dims[3] as usize;
-    (0..n).any(|ci| {
-        let word = p.cell_start.get(n + 1 + ci / 4).copied().unwrap_or(0);
-        (word >> (8 * (ci % 4))) & 255 >= 2
-    })
+    let skips = p.cell_start.get(n + 1..).unwrap_or(&[]);
+    skips.iter().any(|w| w & 0xFEFE_FEFE != 0)
 }
 
 /// Bit 21 of specialization constant 3 (`CONVEX_POLYGONS` in
