@@ -96,7 +96,7 @@ bool cal_walk(vec3 o, vec3 d, float tmax, bool shadow, out float t, out uint hit
             vec4 sp = uintBitsToFloat(prim_word(4u * i + 1u));
             vec3 oc = o - sp.xyz;
             float b = dot(oc, d);
-            float disc = b * b - (dot(oc, oc) - sp.w * sp.w);
+            float disc = b * b - (dot(oc, oc) - sp.w);
             if (disc < 0.0) {
                 continue;
             }

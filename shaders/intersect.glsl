@@ -506,7 +506,7 @@ bool intersect_kinds(Prim prim, Ray ray, RayPre pre, float tmax, out Hit h, uint
     switch (prim_kind(prim)) {
     case KIND_SPHERE:
         if (HAS_SPHERE && (kinds & FEAT_SPHERE) != 0u) {
-            return sphere(prim.a.xyz, prim.b.x, ray, tmax, h);
+            return sphere(prim.a.xyz, prim.a.w, ray, tmax, h);
         }
         break;
     case KIND_PLANE:
@@ -556,7 +556,7 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
     switch (prim_kind(prim)) {
     case KIND_SPHERE:
         if (HAS_SPHERE) {
-            PRECISE vec3 q = (p - prim.a.xyz) / prim.a.w;
+            PRECISE vec3 q = (p - prim.a.xyz) / prim.b.x;
             vec3 n = normalize3(q);
             ng = n;
             ns = n;

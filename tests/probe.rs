@@ -265,7 +265,7 @@ fn item(o: [f32; 3], d: [f32; 3], tmax: f32, u: [u32; 4]) -> ProbeItem {
 fn target(p: &Packed, i: usize) -> ([f32; 3], f32) {
     let pr = &p.prims[i];
     match pr.kind() {
-        KIND_SPHERE => (xyz(&pr.a), pr.a[3]),
+        KIND_SPHERE => (xyz(&pr.a), pr.b[0]),
         KIND_TRIANGLE => {
             let c = [0, 1, 2].map(|k| (pr.a[k] + pr.b[k] + pr.c[k]) / 3.0);
             (
@@ -345,7 +345,7 @@ fn intersect_items(p: &Packed, r: &mut Rng, per_prim: usize) -> Vec<ProbeItem> {
         match pr.kind() {
             KIND_SPHERE => {
                 // Tangent rays: perpendicular distance exactly r (in f32).
-                let rad = pr.a[3];
+                let rad = pr.b[0];
                 for _ in 0..per_prim / 8 {
                     let d = r.unit();
                     let mut n = r.unit();

@@ -57,7 +57,7 @@ pub struct Globals {
 ///
 /// | kind     | a                  | b                       | c                   | data            |
 /// |----------|--------------------|-------------------------|---------------------|-----------------|
-/// | sphere   | centre, radius     | r², 0, 0, 0             |                     |                 |
+/// | sphere   | centre, r²         | radius, 0, 0, 0         |                     |                 |
 /// | plane    | unit normal, d     |                         |                     |                 |
 /// | triangle | v0                 | v1                      | v2                  | normals in extra or NO_NORMALS |
 /// | polygon  | unit normal, d     | count, drop axis, convex, 0 |                 | vertices in extra |

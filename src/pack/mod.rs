@@ -483,7 +483,7 @@ impl Builder {
                     KIND_SPHERE,
                     mat,
                     0,
-                    [v4(c, r), [(r * r) as f32, 0.0, 0.0, 0.0], [0.0; 4]],
+                    [v4(c, r * r), [r as f32, 0.0, 0.0, 0.0], [0.0; 4]],
                     bb,
                 );
             }

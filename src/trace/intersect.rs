@@ -512,7 +512,7 @@ pub fn intersect<F: Real>(
     tmax: F,
 ) -> Option<Hit<F>> {
     match prim.kind() {
-        KIND_SPHERE => sphere(V3::of(&prim.a), F::of(prim.b[0]), ray, tmax),
+        KIND_SPHERE => sphere(V3::of(&prim.a), F::of(prim.a[3]), ray, tmax),
         KIND_PLANE => plane(V3::of(&prim.a), F::of(prim.a[3]), ray, tmax),
         KIND_TRIANGLE => triangle(
             V3::of(&prim.a),
@@ -534,7 +534,7 @@ pub fn intersect<F: Real>(
 pub fn normals<F: Real>(prim: &Prim, extra: &[[f32; 4]], p: V3<F>, h: &Hit<F>) -> (V3<F>, V3<F>) {
     match prim.kind() {
         KIND_SPHERE => {
-            let n = ((p - V3::of(&prim.a)) / F::of(prim.a[3])).normalize();
+            let n = ((p - V3::of(&prim.a)) / F::of(prim.b[0])).normalize();
             (n, n)
         }
         KIND_PLANE | KIND_POLYGON => {

@@ -237,7 +237,7 @@ fn sphere_lanes<F: Real, const P: usize>(
     bound: &[F; P],
 ) -> [F; P] {
     let c = [F::of(prim.a[0]), F::of(prim.a[1]), F::of(prim.a[2])];
-    let r2 = F::of(prim.b[0]);
+    let r2 = F::of(prim.a[3]);
     let mut out = [F::infinity(); P];
     for j in 0..P {
         let (lx, ly, lz) = (c[0] - lw.o[0][j], c[1] - lw.o[1][j], c[2] - lw.o[2][j]);
