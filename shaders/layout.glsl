@@ -187,9 +187,10 @@ const uint UNBOUNDED_KINDS = (STRUCTURE >> 22) & 127u;
 // by every ray and feeler (docs/profiling.md). Never under STRUCTURE_ANY.
 const bool CONVEX_POLYGONS = (STRUCTURE & 0x80200000u) == 0x00200000u;
 
-// Bit 29: no cell of the grid has a skip distance of 2 or more (src/gpu/
-// mod.rs, grid_jumps; src/pack/grid.rs, jumps_pay caps a dense grid's at
-// 1), so grid_traverse's empty-space jump compiles out. llvmpipe ran the
+// Bit 29: no cell of the grid has a skip distance of 2 or more
+// (src/gpu/mod.rs, grid_jumps; src/pack/grid.rs, jumps_pay caps a dense
+// grid's at 1; set too where there is no grid), so grid_traverse's
+// empty-space jump compiles out. llvmpipe ran the
 // jump's code, masked, at every cell visit of a dense field, where rays
 // almost never jump (docs/profiling.md). Never under STRUCTURE_ANY.
 const bool NO_JUMPS = (STRUCTURE & 0xA0000000u) == 0x20000000u;

@@ -906,8 +906,8 @@ fn convex_polygons_and_unbounded_kinds_compile_only_what_the_scene_needs() {
 /// Bit 29 of specialization constant 3 (`NO_JUMPS`): a dense field's grid
 /// keeps no skip distance over 1 (`pack::grid::jumps_pay`), so the kernel
 /// compiles the jump out; a sparse one (SPD balls under the grid) keeps
-/// its jumps and the bit clear. Both render the mirror's image, ray
-/// counts and work (bit for bit on lavapipe).
+/// its jumps and the bit clear. Both render the mirror's image and ray
+/// counts (bit for bit on lavapipe).
 #[test]
 fn dense_grids_walk_without_jumps() {
     use whitted::gpu::{grid_jumps, layout_key};

@@ -506,10 +506,10 @@ fn split_sizes<'a, T>(mut v: &'a mut [T], sizes: &[usize]) -> Vec<&'a mut [T]> {
 /// A grid keeps its empty-space jumps only where at least this share of
 /// its cells can start one (skip distance 2 or more); in a denser grid
 /// every empty cell's distance is capped at 1, so the walks step through
-/// it (`build`, docs/method.md, "Empty-space jumps"). A
-/// field of random spheres has a few such cells in ten thousand, which
-/// its rays almost never meet, while a SIMD device that runs both sides
-/// of every branch (llvmpipe) paid the jump's code at every cell visit.
+/// it (`build`; docs/method.md, "Empty space"). A field of random
+/// spheres has a few such cells in ten thousand, which its rays almost
+/// never meet, while a SIMD device that runs both sides of every branch
+/// (llvmpipe) paid the jump's code at every cell visit.
 pub const JUMP_CELLS_MIN_SHARE: f64 = 0.01;
 
 /// Whether a grid with these skip distances keeps its empty-space jumps:
