@@ -659,13 +659,22 @@ fn discs_bounds(axis: DVec3, p: DVec3, rp: f64, q: DVec3, rq: f64) -> Bounds {
 /// Most primitives kept out of the grid for being as large as the scene.
 pub const GIANTS_MAX: usize = 8;
 
+/// Giants are taken out only while they are at most one in this many of
+/// the finite primitives (`take_out_giants`).
+pub const GIANTS_SHARE_MAX: usize = 4;
+
 /// A few primitives as large as the whole scene (a floor polygon under a
 /// small object, a box round the room) would stretch the grid over empty
 /// space and sit in most of its cells: the SPD's balls put 7 381 spheres
 /// in a 74×74×4 grid because of a 24×24 floor. Up to `GIANTS_MAX` finite
 /// primitives that span at least half the scene's extent on some axis are
 /// instead tested against every ray, like planes; the grid then fits the
-/// rest. Which list a primitive is in never changes a hit. The giants
+/// rest. Only while they are a few among many: where they would be more
+/// than a quarter of the finite primitives (a handful of objects standing
+/// on a floor plane, each as tall as the scene: scenes/quadric.toml had 4
+/// of its 5 taken out) there is no crowd for the grid to fit, and every
+/// ray would test most of the scene. Which list a primitive is in never
+/// changes a hit. The giants
 /// go to the end of `unbounded`; their bounds are returned, in that
 /// order: a BVH takes them back into its tree (`pack`) when they are of
 /// kinds the tree holds already, where a box test at a node turns most
@@ -683,7 +692,7 @@ fn take_out_giants(
     let e = all.extent();
     let giant = |b: &Bounds| (0..3).any(|i| e[i] > 0.0 && b.hi[i] - b.lo[i] >= 0.5 * e[i]);
     let count = bounded.iter().filter(|(_, b)| giant(b)).count();
-    if count == 0 || count > GIANTS_MAX || count == bounded.len() {
+    if count == 0 || count > GIANTS_MAX || count * GIANTS_SHARE_MAX > bounded.len() {
         return Vec::new();
     }
     // In place, both sides in their order: a partition into two new
@@ -1553,6 +1562,39 @@ mod tests {
         assert_eq!(p.prims[100].kind(), KIND_POLYGON);
         // the grid fits the spheres, not the floor
         assert!(p.globals.grid_max[0] - p.globals.grid_min[0] < 1.2);
+    }
+
+    /// A handful of objects as tall as the scene (scenes/quadric.toml's
+    /// shape): each spans the whole height, so each is a giant by extent,
+    /// but four of five are no crowd to fit a grid to. They stay in the
+    /// structure, where a ray tests only those whose cells (or boxes) it
+    /// meets; one such among four small ones still goes out.
+    #[test]
+    fn giants_go_out_only_as_a_few_among_many() {
+        use crate::scene::Object;
+        let sphere = |x: f64, radius: f64| Object {
+            shape: Shape::Sphere {
+                center: DVec3::new(x, 0.0, 0.0),
+                radius,
+            },
+            material: 0,
+        };
+        let tall = (0..4).map(|i| sphere(3.0 * i as f64, 1.0));
+        let handful = scene_of(tall.chain([sphere(1.5, 0.2)]).collect(), false);
+        let p = pack(&handful, &small()).unwrap();
+        assert_eq!(p.globals.counts[0], 5, "every object is in the grid");
+        assert_eq!(p.globals.counts[1], 5);
+        let small_ones = (0..4).map(|i| sphere(0.5 * i as f64, 0.1));
+        let few = scene_of(
+            [sphere(0.0, 1.0)].into_iter().chain(small_ones).collect(),
+            false,
+        );
+        let p = pack(&few, &small()).unwrap();
+        assert_eq!(
+            (p.globals.counts[0], p.globals.counts[1]),
+            (4, 5),
+            "one giant among five is tested against every ray"
+        );
     }
 
     fn scene_of(objects: Vec<crate::scene::Object>, glass: bool) -> Scene {
