@@ -2522,7 +2522,8 @@ fn cli_profile_sweeps_saves_and_render_uses_the_saved_shape_and_kernel() {
 /// keeps it) they differ only through its lifetime (one invocation
 /// on the GPU, a 16×16 tile on the CPU; docs/gpu.md), so: within 5 % on
 /// every bundled scene with each structure on a CPU device (lavapipe, two
-/// lattice points per invocation), 10 % on a GPU (one point per
+/// lattice points per invocation; the cells and nodes within three times
+/// that, below), 10 % on a GPU (one point per
 /// invocation: a shorter life; an NVIDIA H200 counted 5.2 % fewer tests
 /// on mesh.toml with the BVH), or 16 where there are only a handful; and
 /// equal on a CPU device where no opaque blocker is ever cached (glass
@@ -2538,7 +2539,10 @@ fn gpu_work_counters_match_the_cpu() {
     // 5 % (10 % on a GPU), or 16 where a scene walks only a handful of
     // cells.
     let share = if exact { 0.05 } else { 0.10 };
-    let close = |a: u64, b: u64| (a as f64 - b as f64).abs() <= (share * a.max(b) as f64).max(16.0);
+    let close_within = |a: u64, b: u64, share: f64| {
+        (a as f64 - b as f64).abs() <= (share * a.max(b) as f64).max(16.0)
+    };
+    let close = |a: u64, b: u64| close_within(a, b, share);
     for path in scene_files() {
         for accel in [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid] {
             let p = common::load(
@@ -2568,8 +2572,17 @@ fn gpu_work_counters_match_the_cpu() {
                 cw.tests,
                 gw.tests
             );
+            // Three times the share for the cells and nodes: a feeler
+            // whose cached blocker stops it skips its whole walk, where its
+            // tests would have been one or two. scenes/quadric.toml, five
+            // objects in a 4×3×1 grid or a small octree, its floor's
+            // feelers often stopped by the cache: 3 800 cells on the CPU
+            // against 4 095 on lavapipe under the grid (7.8 %), 2 197
+            // against 2 445 under the octree (10.1 %), the tests 2 % and
+            // 0.5 % apart; equal without the cache
+            // (`without_the_shadow_cache_the_work_counters_are_equal`).
             assert!(
-                close(walked.0, walked.1),
+                close_within(walked.0, walked.1, 3.0 * share),
                 "{name}: cells/nodes cpu {:?} gpu {:?}",
                 cw,
                 gw
