@@ -131,6 +131,41 @@ pub fn to_rgb8(f: &Frame, enc: Encoding) -> image::RgbImage {
     img
 }
 
+/// The frame's linear values at 16 bits (`to_u16_linear`), big-endian as
+/// PNG stores them, in rows on every core.
+fn to_rgb16_be(f: &Frame) -> Vec<u8> {
+    use rayon::prelude::*;
+    let w = f.width as usize;
+    let mut data = vec![0u8; 6 * f.pixels.len()];
+    data.par_chunks_mut(6 * w.max(1))
+        .zip(f.pixels.par_chunks(w.max(1)))
+        .for_each(|(out, px)| {
+            for (o, c) in out.chunks_exact_mut(6).zip(px) {
+                for (k, &v) in c.iter().enumerate() {
+                    o[2 * k..2 * k + 2].copy_from_slice(&to_u16_linear(v).to_be_bytes());
+                }
+            }
+        });
+    data
+}
+
+/// RGB samples (`depth` bits each, big-endian) as PNG into `out`, with the
+/// compression and filters the image crate's encoder uses by default
+/// (fdeflate's fast mode, each row's filter chosen adaptively): the same
+/// file, without the copies that wrapper makes. At 512² and 16 bits (what
+/// `whitted bench` writes) the output step took 8-9 ms of an SPD render's
+/// 110-200 ms wall (BENCHMARKS.md).
+fn encode_png(f: &Frame, depth: png::BitDepth, data: &[u8], out: &mut Vec<u8>) -> Result<()> {
+    let mut e = png::Encoder::new(out, f.width, f.height);
+    e.set_color(png::ColorType::Rgb);
+    e.set_depth(depth);
+    e.set_compression(png::Compression::Fast);
+    e.set_filter(png::Filter::Adaptive);
+    let mut w = e.write_header().context("cannot encode PNG")?;
+    w.write_image_data(data).context("cannot encode PNG")?;
+    w.finish().context("cannot encode PNG")
+}
+
 /// Kinds of output a path asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
@@ -157,23 +192,20 @@ pub fn format_of(path: &Path) -> Result<Format> {
 
 /// Encodes `f` in `format`.
 pub fn encode(f: &Frame, format: Format, enc: Encoding, w: &mut dyn std::io::Write) -> Result<()> {
+    if f.pixels.len() as u64 != f.width as u64 * f.height as u64 {
+        bail!(
+            "a {}x{} frame with {} pixels: frame size does not match its pixels",
+            f.width,
+            f.height,
+            f.pixels.len()
+        );
+    }
     let mut buf = std::io::Cursor::new(Vec::new());
     match format {
         Format::Png if enc == Encoding::Linear16 => {
-            let data: Vec<u16> = f
-                .pixels
-                .iter()
-                .flatten()
-                .map(|&v| to_u16_linear(v))
-                .collect();
-            image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(f.width, f.height, data)
-                .context("frame size does not match its pixels")?
-                .write_to(&mut buf, image::ImageFormat::Png)
-                .context("cannot encode PNG")?
+            encode_png(f, png::BitDepth::Sixteen, &to_rgb16_be(f), buf.get_mut())?
         }
-        Format::Png => to_rgb8(f, enc)
-            .write_to(&mut buf, image::ImageFormat::Png)
-            .context("cannot encode PNG")?,
+        Format::Png => encode_png(f, png::BitDepth::Eight, &to_rgb8(f, enc), buf.get_mut())?,
         Format::Exr | Format::Hdr => {
             let data: Vec<f32> = f.pixels.iter().flatten().copied().collect();
             let img = image::Rgb32FImage::from_raw(f.width, f.height, data)
@@ -261,6 +293,58 @@ mod tests {
         let want = [0, 16384, 21845, 65534, 65535, 65535, 0, 0, 0];
         assert_eq!(got, want);
         assert_eq!(to_u8(0.5, Encoding::Linear16), 128);
+    }
+
+    /// Both PNG depths written row by row on every core (`to_rgb16_be`,
+    /// `to_rgb8`) read back pixel for pixel in place; a frame whose pixels
+    /// do not fill it is refused, not written short.
+    #[test]
+    fn png_rows_read_back_in_place_at_both_depths() {
+        let (w, h) = (7u32, 5u32);
+        let pixels: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                let v = i as f32 / (w * h) as f32;
+                [v, 1.0 - v, (i % 3) as f32 * 0.4]
+            })
+            .collect();
+        let mut f = Frame {
+            width: w,
+            height: h,
+            pixels: pixels.clone(),
+            stats: Default::default(),
+            work: Default::default(),
+            seconds: 0.0,
+            device_seconds: None,
+            phases: Vec::new(),
+            device_stages: Vec::new(),
+        };
+        let mut bytes = Vec::new();
+        encode(&f, Format::Png, Encoding::Linear16, &mut bytes).unwrap();
+        let img = image::load_from_memory(&bytes).unwrap();
+        let got: Vec<u16> = img.as_rgb16().unwrap().pixels().flat_map(|p| p.0).collect();
+        let want: Vec<u16> = pixels.iter().flatten().map(|&v| to_u16_linear(v)).collect();
+        assert_eq!(got, want);
+        for enc in [Encoding::Srgb, Encoding::Linear] {
+            bytes.clear();
+            encode(&f, Format::Png, enc, &mut bytes).unwrap();
+            let img = image::load_from_memory(&bytes).unwrap();
+            let got: Vec<u8> = img.as_rgb8().unwrap().pixels().flat_map(|p| p.0).collect();
+            let want: Vec<u8> = pixels.iter().flatten().map(|&v| to_u8(v, enc)).collect();
+            assert_eq!(got, want, "{enc:?}");
+        }
+        f.pixels.pop();
+        for (format, enc) in [
+            (Format::Png, Encoding::Linear16),
+            (Format::Png, Encoding::Srgb),
+            (Format::Exr, Encoding::Srgb),
+        ] {
+            bytes.clear();
+            assert!(
+                encode(&f, format, enc, &mut bytes).is_err(),
+                "{format:?} {enc:?}"
+            );
+            assert!(bytes.is_empty(), "nothing written");
+        }
     }
 
     /// Every f32 from 0 to 1 (1.07 G of them; about 2 s in a release
