@@ -258,6 +258,21 @@ mod tests {
         assert_eq!(to_u8(-0.0, Encoding::Srgb), 0);
     }
 
+    /// A frame of these pixels and nothing else.
+    fn frame(width: u32, height: u32, pixels: Vec<[f32; 3]>) -> Frame {
+        Frame {
+            width,
+            height,
+            pixels,
+            stats: Default::default(),
+            work: Default::default(),
+            seconds: 0.0,
+            device_seconds: None,
+            phases: Vec::new(),
+            device_stages: Vec::new(),
+        }
+    }
+
     /// `--encoding linear16` writes a 16-bit PNG whose samples read back
     /// as round(65535 · clamp(v, 0, 1)), a NaN as 0, channel by channel.
     #[test]
@@ -274,17 +289,7 @@ mod tests {
             1e-6,
         ];
         let pixels: Vec<[f32; 3]> = vals.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
-        let f = Frame {
-            width: 3,
-            height: 1,
-            pixels,
-            stats: Default::default(),
-            work: Default::default(),
-            seconds: 0.0,
-            device_seconds: None,
-            phases: Vec::new(),
-            device_stages: Vec::new(),
-        };
+        let f = frame(3, 1, pixels);
         let mut bytes = Vec::new();
         encode(&f, Format::Png, Encoding::Linear16, &mut bytes).unwrap();
         let img = image::load_from_memory(&bytes).unwrap();
@@ -307,17 +312,7 @@ mod tests {
                 [v, 1.0 - v, (i % 3) as f32 * 0.4]
             })
             .collect();
-        let mut f = Frame {
-            width: w,
-            height: h,
-            pixels: pixels.clone(),
-            stats: Default::default(),
-            work: Default::default(),
-            seconds: 0.0,
-            device_seconds: None,
-            phases: Vec::new(),
-            device_stages: Vec::new(),
-        };
+        let mut f = frame(w, h, pixels.clone());
         let mut bytes = Vec::new();
         encode(&f, Format::Png, Encoding::Linear16, &mut bytes).unwrap();
         let img = image::load_from_memory(&bytes).unwrap();
