@@ -258,6 +258,46 @@ fn shadows_option() {
     assert!(!dir.path().join("x.png").exists());
 }
 
+/// `--counting` overrides the preset's: a glass sphere that does not
+/// reflect (k_t > 0, k_r = 0) spawns, under SPD counting, reflection rays
+/// of weight 0 for the counts alone. `--preset spd --counting traced`
+/// writes the same image without them; a bad value is a usage error.
+#[test]
+fn counting_option_overrides_the_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let glass = "[camera]\nfrom = [0, -8, 3]\nat = [0, 0, 0]\nwidth = 24\nheight = 16\n\n\
+        [[light]]\nposition = [5, -5, 10]\n\n\
+        [material.glass]\nkd = 0.1\nkt = 0.9\nior = 1.5\n\n\
+        [[object]]\ntype = \"sphere\"\ncenter = [0, 0, 1]\nradius = 1\nmaterial = \"glass\"\n\n\
+        [[object]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\n";
+    let scene = write(dir.path(), "g.toml", glass);
+    let mut runs = Vec::new();
+    for extra in [&[][..], &["--counting", "traced"], &["--counting", "spd"]] {
+        let mut args = vec!["render", "-q", "--backend", "cpu", "--preset", "spd"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--width", "24", "--height", "16"]);
+        let j = render_stats(dir.path(), &scene, &args);
+        let image = std::fs::read(dir.path().join("o.png")).unwrap();
+        runs.push((j, image));
+    }
+    let reflect = |j: &serde_json::Value| j["rays"]["reflect"].as_u64().unwrap();
+    let (spd, traced, spd_again) = (&runs[0], &runs[1], &runs[2]);
+    assert_eq!(spd.0["counting"], "Spd", "{}", spd.0);
+    assert_eq!(traced.0["counting"], "Traced", "{}", traced.0);
+    assert_eq!(spd_again.0["counting"], "Spd");
+    assert!(
+        reflect(&traced.0) < reflect(&spd.0),
+        "traced {} against spd {}",
+        reflect(&traced.0),
+        reflect(&spd.0)
+    );
+    assert_eq!(reflect(&spd_again.0), reflect(&spd.0));
+    assert_eq!(spd.1, traced.1, "the same image");
+    let err = render_with_bogus(dir.path(), &scene, "--counting");
+    assert!(err.contains("traced") && err.contains("spd"), "{err}");
+    assert!(!dir.path().join("x.png").exists());
+}
+
 /// `--gpu-math`: `fast` is a value render takes (with the CPU backend it
 /// changes nothing and says so); anything else is a usage error (exit 2)
 /// naming the values.

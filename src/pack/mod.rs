@@ -166,7 +166,7 @@ fn dims_text(d: &[u32; 3]) -> String {
 
 /// How rays are counted (`RayStats`), set on the packed scene with
 /// `Packed::set_counting`. Both ways give the same image, bit for bit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, clap::ValueEnum)]
 pub enum Counting {
     /// The rays whitted traces: a reflection ray where k_r > 0 (or on total
     /// internal reflection), one shadow feeler counted per feeler cast.
