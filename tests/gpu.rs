@@ -2377,6 +2377,16 @@ fn cli_render_spv_variant() {
     let o = render(Some(&spv), &b);
     assert!(o.status.success(), "{}", stderr_of(&o));
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    // The note names the built-in module the variant stands in for, and
+    // where that is the several-points module, how to compile a variant
+    // like it (a one-point module there is no measure of a variant).
+    let err = stderr_of(&o);
+    assert!(err.contains("where the built-in kernel is render"), "{err}");
+    assert_eq!(
+        err.contains("render_lanes.spv"),
+        err.contains("-DWHITTED_LANES=1"),
+        "{err}"
+    );
     let c = dir.path().join("c.png");
     let o = render(Some(&not_spv), &c);
     assert_eq!(o.status.code(), Some(2), "{}", stderr_of(&o));

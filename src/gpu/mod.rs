@@ -1504,6 +1504,21 @@ impl Gpu {
             });
         }
         if let Some(variant) = render_variant()? {
+            // The built-in kernel at more than one point an invocation is
+            // `render_lanes` (WHITTED_LANES): a variant compiled without
+            // it renders the same image 1.3-1.6 times slower on lavapipe,
+            // which is no measure of the variant (docs/profiling.md).
+            let (builtin, _) = opts.math.render_kernel(opts.lane_pixels > 1);
+            log::info!(
+                "{RENDER_SPV}: {} lattice point(s) an invocation (--lane-pixels), where the \
+                 built-in kernel is {builtin}.spv{}",
+                opts.lane_pixels,
+                if opts.lane_pixels > 1 {
+                    ": compile the variant with -DWHITTED_LANES=1 to compare like with like"
+                } else {
+                    ""
+                }
+            );
             return self
                 .guarded(|| self.render_with(&variant, "render_variant", packed, opts, progress));
         }
