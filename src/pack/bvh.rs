@@ -164,24 +164,25 @@ impl Item {
     }
 }
 
+/// A box, `N` lanes a corner: 3, or 4 for a bin's box (`BinBox`).
 #[derive(Clone, Copy, Debug)]
-struct Aabb {
-    lo: [f32; 3],
-    hi: [f32; 3],
+struct Aabb<const N: usize = 3> {
+    lo: [f32; N],
+    hi: [f32; N],
 }
 
-impl Aabb {
-    const EMPTY: Aabb = Aabb {
-        lo: [f32::INFINITY; 3],
-        hi: [f32::NEG_INFINITY; 3],
+impl<const N: usize> Aabb<N> {
+    const EMPTY: Self = Aabb {
+        lo: [f32::INFINITY; N],
+        hi: [f32::NEG_INFINITY; N],
     };
     /// The union with the box `lo..hi`. Selects rather than
     /// `f32::min`/`max` (which also handle a NaN in `self`, never the case
     /// here: boxes start `EMPTY` and a NaN bound is ignored either way):
     /// one `minss`/`maxss` each in the build's inner loops.
     #[inline]
-    fn grow(&mut self, lo: &[f32; 3], hi: &[f32; 3]) {
-        for i in 0..3 {
+    fn grow(&mut self, lo: &[f32; N], hi: &[f32; N]) {
+        for i in 0..N {
             self.lo[i] = if lo[i] < self.lo[i] {
                 lo[i]
             } else {
@@ -194,6 +195,9 @@ impl Aabb {
             };
         }
     }
+}
+
+impl Aabb {
     #[inline]
     fn grow_point(&mut self, p: [f32; 3]) {
         self.grow(&p, &p);
@@ -549,7 +553,7 @@ fn sah_split(items: &[Item], bb: &Aabb, cb: &Aabb) -> Option<(f64, usize, usize)
             for a in 0..3 {
                 if axes[a] {
                     let b = bin_of(it.c2(a), cb.lo[a], scale[a]);
-                    bins.boxes[a][b].grow(&it.lo, &it.hi);
+                    bins.boxes[a][b].grow3(&it.lo, &it.hi);
                     bins.counts[a][b] += 1;
                 }
             }
@@ -644,7 +648,7 @@ impl Bins {
         for a in 0..3 {
             for b in 0..BINS {
                 let ob = o.boxes[a][b].aabb();
-                self.boxes[a][b].grow(&ob.lo, &ob.hi);
+                self.boxes[a][b].grow3(&ob.lo, &ob.hi);
                 self.counts[a][b] += o.counts[a][b];
             }
         }
@@ -659,26 +663,16 @@ impl Bins {
 /// to reach the cache, and those loads held over half of the binning's
 /// samples (`perf annotate`, 598 k spheres). Four lanes give plain
 /// stores. The same minima and maxima, so the same tree.
-#[derive(Clone, Copy)]
-struct BinBox {
-    lo: [f32; 4],
-    hi: [f32; 4],
-}
+type BinBox = Aabb<4>;
 
 impl BinBox {
-    const EMPTY: BinBox = BinBox {
-        lo: [f32::INFINITY; 4],
-        hi: [f32::NEG_INFINITY; 4],
-    };
-    /// `Aabb::grow` on four lanes.
+    /// Grows by the three-lane box `lo..hi` (the fourth lanes stay ±∞).
     #[inline]
-    fn grow(&mut self, lo: &[f32; 3], hi: &[f32; 3]) {
-        let l = [lo[0], lo[1], lo[2], f32::INFINITY];
-        let h = [hi[0], hi[1], hi[2], f32::NEG_INFINITY];
-        for i in 0..4 {
-            self.lo[i] = if l[i] < self.lo[i] { l[i] } else { self.lo[i] };
-            self.hi[i] = if h[i] > self.hi[i] { h[i] } else { self.hi[i] };
-        }
+    fn grow3(&mut self, lo: &[f32; 3], hi: &[f32; 3]) {
+        self.grow(
+            &[lo[0], lo[1], lo[2], f32::INFINITY],
+            &[hi[0], hi[1], hi[2], f32::NEG_INFINITY],
+        );
     }
     fn aabb(&self) -> Aabb {
         Aabb {
