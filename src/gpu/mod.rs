@@ -690,9 +690,10 @@ const RENDER_SPV: &str = "WHITTED_RENDER_SPV";
 /// the shader without rebuilding (docs/profiling.md, "Trying a kernel
 /// variant"): a copy of `shaders/` edited and compiled with
 /// glslangValidator, with the same bindings, push and specialization
-/// constants. Unset or empty: None. An unreadable file or one that is
-/// not SPIR-V is a setting error (exit 2).
-pub fn render_variant() -> Result<Option<Vec<u8>>, GpuError> {
+/// constants. Unset or empty: None; otherwise the file as it is shown,
+/// and its bytes. An unreadable file or one that is not SPIR-V is a
+/// setting error (exit 2).
+pub fn render_variant() -> Result<Option<(String, Vec<u8>)>, GpuError> {
     let Some(path) = std::env::var_os(RENDER_SPV).filter(|v| !v.is_empty()) else {
         return Ok(None);
     };
@@ -704,8 +705,7 @@ pub fn render_variant() -> Result<Option<Vec<u8>>, GpuError> {
             "{RENDER_SPV}={shown}: not a SPIR-V module (little-endian, starting with 0x07230203)"
         )));
     }
-    log::info!("rendering with the kernel in {shown} ({RENDER_SPV})");
-    Ok(Some(bytes))
+    Ok(Some((shown, bytes)))
 }
 
 /// How to run on the GPU. `device`, `real_gpu_only`, `sync_validation`,
@@ -1503,15 +1503,15 @@ impl Gpu {
                 self.render_with(shaders::CALIBRATION, "calibration", packed, &opts, progress)
             });
         }
-        if let Some(variant) = render_variant()? {
+        if let Some((shown, variant)) = render_variant()? {
             // The built-in kernel at more than one point an invocation is
             // `render_lanes` (WHITTED_LANES): a variant compiled without
             // it renders the same image 1.3-1.6 times slower on lavapipe,
             // which is no measure of the variant (docs/profiling.md).
             let (builtin, _) = opts.math.render_kernel(opts.lane_pixels > 1);
             log::info!(
-                "{RENDER_SPV}: {} lattice point(s) an invocation (--lane-pixels), where the \
-                 built-in kernel is {builtin}.spv{}",
+                "rendering with the kernel in {shown} ({RENDER_SPV}) at {} lattice point(s) \
+                 an invocation (--lane-pixels), where the built-in kernel is {builtin}.spv{}",
                 opts.lane_pixels,
                 if opts.lane_pixels > 1 {
                     ": compile the variant with -DWHITTED_LANES=1 to compare like with like"
