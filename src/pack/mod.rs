@@ -732,33 +732,49 @@ fn morton_key(all: &Bounds, e: &[f64; 3], b: &Bounds) -> u64 {
 /// Puts primitives that are near in space near in memory (Morton order of
 /// their bounds' centres): a ray's tests then touch few cache lines, which
 /// is what keeps a million primitives from being memory-bound. Stable:
-/// primitives with one code keep the scene's order.
-fn morton_order(prims: &mut [(Prim, Bounds)]) {
+/// primitives with one code keep the scene's order. Returns each
+/// primitive's code, in the new order.
+///
+/// The codes are sorted with the indices in their low 32 bits (a code has
+/// 30), so every key is distinct and an unstable sort gives the stable
+/// order; the primitives (112 bytes each) are then gathered once into a
+/// new array, where sorting them in place by a cached key moved each one
+/// by swaps along the permutation's cycles (BENCHMARKS.md, "Packing large
+/// scenes").
+fn morton_order(prims: &mut Vec<(Prim, Bounds)>) -> Vec<u64> {
     let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
     let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
-    // Stable either way; in parallel for the large scenes it costs most.
+    // `census` keeps the count within u32.
+    let key = |(i, (_, b)): (usize, &(Prim, Bounds))| morton_key(&all, &e, b) << 32 | i as u64;
+    let index = |k: &u64| (k & 0xFFFF_FFFF) as usize;
+    let mut keys: Vec<u64>;
     if prims.len() >= 1 << 16 {
-        use rayon::slice::ParallelSliceMut;
-        prims.par_sort_by_cached_key(|(_, b)| morton_key(&all, &e, b));
+        use rayon::prelude::*;
+        keys = prims.par_iter().enumerate().map(key).collect();
+        keys.par_sort_unstable();
+        *prims = keys.par_iter().map(|k| prims[index(k)]).collect();
+        keys.par_iter_mut().for_each(|k| *k >>= 32);
     } else {
-        prims.sort_by_cached_key(|(_, b)| morton_key(&all, &e, b));
+        keys = prims.iter().enumerate().map(key).collect();
+        keys.sort_unstable();
+        *prims = keys.iter().map(|k| prims[index(k)]).collect();
+        keys.iter_mut().for_each(|k| *k >>= 32);
     }
+    keys
 }
 
 /// Drops every opaque primitive that is an exact copy of an earlier one
 /// (the same packed bytes: kind, material and f32 geometry), after
-/// `morton_order`; returns how many. The tracer reads only those bytes, so
-/// a copy gives the same hit at the same distance with the same shading,
-/// and a shadow feeler through an opaque primitive is blocked whether it
-/// crosses one copy or many: the image and the ray counts are unchanged.
+/// `morton_order`, whose codes `keys` are; returns how many. The tracer
+/// reads only those bytes, so a copy gives the same hit at the same
+/// distance with the same shading, and a shadow feeler through an opaque
+/// primitive is blocked whether it crosses one copy or many: the image and
+/// the ray counts are unchanged.
 /// Transparent copies stay (each multiplies a feeler's transmittance).
 /// A pile of N identical spheres otherwise costs every ray N tests.
 /// Copies have one Morton code, so only runs of equal codes are searched:
 /// in ordinary scenes those are short and rare, and this costs one pass.
-fn drop_opaque_copies(prims: &mut Vec<(Prim, Bounds)>, opaque: &[bool]) -> usize {
-    let all = prims.iter().fold(Bounds::EMPTY, |a, (_, b)| a.union(b));
-    let e = all.extent().map(|x| x.max(f64::MIN_POSITIVE));
-    let keys: Vec<u64> = prims.iter().map(|(_, b)| morton_key(&all, &e, b)).collect();
+fn drop_opaque_copies(prims: &mut Vec<(Prim, Bounds)>, keys: &[u64], opaque: &[bool]) -> usize {
     let mut keep = vec![true; prims.len()];
     let mut dropped = 0;
     let mut i = 0;
@@ -1078,13 +1094,14 @@ pub fn pack_with_progress(
     let giants_at = b.unbounded.len() - giants.len();
     let n = b.bounded.len() as u64;
     progress(Stage::Sort, 0, n);
-    morton_order(&mut b.bounded);
+    let keys = morton_order(&mut b.bounded);
     let opaque: Vec<bool> = scene
         .materials
         .iter()
         .map(|m| m.kt.max_element() <= 0.0)
         .collect();
-    let duplicates = drop_opaque_copies(&mut b.bounded, &opaque);
+    let duplicates = drop_opaque_copies(&mut b.bounded, &keys, &opaque);
+    drop(keys);
     let n = b.bounded.len() as u64;
     progress(Stage::Sort, n, n);
     let bounds: Vec<Bounds> = b.bounded.iter().map(|(_, bb)| *bb).collect();
