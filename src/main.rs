@@ -5,6 +5,12 @@ use clap::Parser;
 use std::process::ExitCode;
 use whitted::cli::{self, Cli, Ui};
 
+/// jemalloc, configured in .cargo/config.toml to put its mappings on
+/// transparent huge pages: a large scene's arrays then fault 2 MiB at a
+/// time, not 4 KiB (docs/architecture.md, "Memory").
+#[global_allocator]
+static ALLOC: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
+
 fn main() -> ExitCode {
     cli::install_panic_hook();
     let args = Cli::parse();

@@ -8,7 +8,11 @@
 //! for them, which a `Vec` cannot do without `unsafe`, so an array of
 //! [`HUGE_MIN_BYTES`] or more is copied into an anonymous mapping that is
 //! advised `MADV_HUGEPAGE` (memmap2's safe API). Smaller arrays stay in a
-//! `Vec`. Measured in BENCHMARKS.md ("From 1 k to 1 M primitives").
+//! `Vec`. Measured in BENCHMARKS.md ("From 1 k to 1 M primitives"). The
+//! `whitted` binary's allocator (jemalloc, `thp:always`) advises its own
+//! mappings the same way (docs/architecture.md, "Memory"); this copy keeps
+//! the render's arrays on huge pages under any allocator, the library's
+//! users' and the tests' included.
 
 use bytemuck::Pod;
 use std::ops::{Deref, DerefMut};
