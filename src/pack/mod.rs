@@ -916,17 +916,19 @@ pub fn choose_structure(settings: &Settings, bounds: &[Bounds], samples: u64) ->
 
 /// `Accel::Auto` may take the BVH up to this many finite primitives
 /// whatever the image; beyond it only while the render it speeds up is
-/// long enough to pay for its build (`AUTO_BVH_RAYS`).
+/// long enough to pay for its build (`AUTO_BVH_PRIMS_PER_RAY`).
 pub const AUTO_BVH_MAX_PRIMS: usize = 1 << 16;
 
-/// Beyond `AUTO_BVH_MAX_PRIMS`, `Accel::Auto` takes the BVH while N ×
-/// fill ≤ `AUTO_BVH_RAYS` × eye rays (N finite primitives, `fill_ratio`):
-/// the BVH's build costs about twice the grid's per primitive, and what
-/// it saves per ray is the larger the sparser the scene (a teapot of
-/// fill 0.014 renders 3× faster under the BVH, a sphereflake of fill
-/// 0.12 1.5×). Measured on both at 256×192 to 1024×768 (docs/method.md,
-/// "Choosing the structure").
-pub const AUTO_BVH_RAYS: f64 = 0.04;
+/// Beyond `AUTO_BVH_MAX_PRIMS`, `Accel::Auto` takes the BVH while its N
+/// finite primitives are at most this many per eye ray: its build costs
+/// about 0.2 µs (spheres) to 0.5 µs (triangles) a primitive more than the
+/// grid's, and on a clustered scene its render saves about 0.75 µs
+/// (sphereflake) to 1.3 µs (teapot) an eye ray, so the two meet at 3-8
+/// primitives an eye ray. Measured on sphereflakes of 66 k and 598 k
+/// spheres and teapots of 104 k and 233 k triangles from 128×96 to
+/// 1024×768 (docs/method.md, "Choosing the structure"). An evenly filled
+/// scene takes the grid whatever its size (`AUTO_GRID_FILL`).
+pub const AUTO_BVH_PRIMS_PER_RAY: f64 = 5.0;
 
 /// `Accel::Auto` takes the grid when the primitives' boxes fill at least
 /// this share of their union's box (`fill_ratio`): an evenly filled scene,
@@ -960,7 +962,7 @@ pub fn auto_structure(bounds: &[Bounds], samples: u64) -> Accel {
         bounds.len()
     );
     if bounds.len() > AUTO_BVH_MAX_PRIMS
-        && bounds.len() as f64 * fill > AUTO_BVH_RAYS * samples as f64
+        && bounds.len() as f64 > AUTO_BVH_PRIMS_PER_RAY * samples as f64
     {
         return Accel::Grid;
     }
@@ -1882,7 +1884,7 @@ mod tests {
     /// `auto` takes the BVH for clustered scenes (the SPD's, a
     /// sphereflake), the grid for an evenly filled field of spheres and
     /// above `AUTO_BVH_MAX_PRIMS` primitives, unless there are eye rays
-    /// enough for the BVH's build to pay (`AUTO_BVH_RAYS`).
+    /// enough for the BVH's build to pay (`AUTO_BVH_PRIMS_PER_RAY`).
     #[test]
     fn auto_picks_by_fill_and_size() {
         let auto = |s: &Scene| pack(s, &Settings::default()).unwrap().structure();
@@ -1908,8 +1910,8 @@ mod tests {
         assert!(fill_ratio(&few) < AUTO_GRID_FILL);
         assert_eq!(auto_structure(&few, 1), Accel::Bvh);
         let many: Vec<Bounds> = (0..AUTO_BVH_MAX_PRIMS + 1).map(tiny).collect();
-        let fill = fill_ratio(&many);
-        let rays = (many.len() as f64 * fill / AUTO_BVH_RAYS) as u64;
+        assert!(fill_ratio(&many) < AUTO_GRID_FILL);
+        let rays = (many.len() as f64 / AUTO_BVH_PRIMS_PER_RAY) as u64;
         assert_eq!(auto_structure(&many, rays / 2), Accel::Grid);
         // ... unless the render has enough eye rays to pay for the build.
         assert_eq!(auto_structure(&many, rays * 2), Accel::Bvh);
