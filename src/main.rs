@@ -12,6 +12,7 @@ use whitted::cli::{self, Cli, Ui};
 static ALLOC: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
 
 fn main() -> ExitCode {
+    whitted::pack::pages::allocator_gives_huge_pages();
     cli::install_panic_hook();
     let args = Cli::parse();
     cli::init_logging(Ui {

@@ -10,15 +10,29 @@
 //! advised `MADV_HUGEPAGE` (memmap2's safe API). Smaller arrays stay in a
 //! `Vec`. Measured in BENCHMARKS.md ("From 1 k to 1 M primitives"). The
 //! `whitted` binary's allocator (jemalloc, `thp:always`) advises its own
-//! mappings the same way (docs/architecture.md, "Memory"); this copy keeps
-//! the render's arrays on huge pages under any allocator, the library's
-//! users' and the tests' included.
+//! mappings the same way (docs/architecture.md, "Memory") and says so
+//! ([`allocator_gives_huge_pages`]): its arrays then stay where they are.
+//! The copy keeps the render's arrays on huge pages under any other
+//! allocator, the library's users' and the tests' included.
 
 use bytemuck::Pod;
 use std::ops::{Deref, DerefMut};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Arrays smaller than this stay in a `Vec` (a huge page is 2 MiB).
 pub const HUGE_MIN_BYTES: usize = 4 << 20;
+
+/// Whether the process's allocator puts its mappings on huge pages.
+static ALLOCATOR_HUGE: AtomicBool = AtomicBool::new(false);
+
+/// Tells `Pages` that the global allocator already advises its mappings
+/// as huge pages (the `whitted` binary's jemalloc, `thp:always`), so an
+/// array is kept in its `Vec` rather than copied (on 1 M spheres, 112 MB
+/// of primitives and grid references: BENCHMARKS.md, "Packing large
+/// scenes").
+pub fn allocator_gives_huge_pages() {
+    ALLOCATOR_HUGE.store(true, Ordering::Relaxed);
+}
 
 /// A fixed-length array of plain data; derefs to a slice.
 pub struct Pages<T: Pod> {
@@ -44,7 +58,7 @@ impl<T: Pod> Pages<T> {
 impl<T: Pod> From<Vec<T>> for Pages<T> {
     fn from(v: Vec<T>) -> Self {
         let bytes = std::mem::size_of_val(v.as_slice());
-        if bytes < HUGE_MIN_BYTES {
+        if bytes < HUGE_MIN_BYTES || ALLOCATOR_HUGE.load(Ordering::Relaxed) {
             return Pages {
                 store: Store::Vec(v),
             };
