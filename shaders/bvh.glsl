@@ -190,6 +190,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                         stack_t[sp] = s1;
                         sp += 1u;
                     }
+                    work_stack = max(work_stack, sp);
                     link = n.link[k0];
                     count = n.count[k0];
                     slot = 1u + base + k0;

@@ -142,7 +142,12 @@ vec3 cal_trace(vec3 o, vec3 d) {
     for (uint depth = 0u; depth <= g.trace.x; depth++) {
         float t;
         uint pi;
-        if (!cal_walk(o, d, INF, false, t, pi)) {
+        uvec3 before = work_totals();
+        bool found = cal_walk(o, d, INF, false, t, pi);
+        if (depth == 0u) {
+            work_eye += work_totals() - before;
+        }
+        if (!found) {
             color += w * g.background.rgb;
             break;
         }
@@ -170,7 +175,10 @@ vec3 cal_trace(vec3 o, vec3 d) {
             stats.shadow += 1u;
             float tb;
             uint bi;
-            if (cal_walk(po, L, dist, true, tb, bi)) {
+            uvec3 before_ = work_totals();
+            bool blocked = cal_walk(po, L, dist, true, tb, bi);
+            work_shadow += work_totals() - before_;
+            if (blocked) {
                 continue;
             }
             vec3 f = lights[l].falloff.xyz;

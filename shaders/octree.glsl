@@ -266,6 +266,7 @@ void octree_traverse_stack(Ray ray, RayPre pre, inout Query q) {
                     sp++;
                 }
             }
+            work_stack = max(work_stack, sp);
             cur = seq[0];
             continue;
         }

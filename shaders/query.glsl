@@ -42,6 +42,18 @@ uint loops_cut = 0u;
 uint work_tests = 0u;
 uint work_cells = 0u;
 uint work_nodes = 0u;
+// Their shares: the eye rays' closest hits and the shadow feelers'
+// (Work::eye, Work::shadow), credited around the same queries as on the
+// CPU (work_credit); and the deepest a structure walk's stack went
+// (Work::stack).
+uvec3 work_eye = uvec3(0u);
+uvec3 work_shadow = uvec3(0u);
+uint work_stack = 0u;
+
+// The three counters as they stand (Work::totals).
+uvec3 work_totals() {
+    return uvec3(work_tests, work_cells, work_nodes);
+}
 
 void shadow_cache_reset() {
     for (uint i = 0u; i < SHADOW_CACHE_LEVELS * SHADOW_CACHE_LIGHTS; i++) {

@@ -153,7 +153,13 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
         RayPre pre = ray_pre(e.d);
         Hit h;
         uint pi;
-        if (!closest_hit(r, pre, INF, h, pi)) {
+        uvec3 before = work_totals();
+        bool found = closest_hit(r, pre, INF, h, pi);
+        if (e.depth == 0u) {
+            // An eye ray's work is its own (work_eye).
+            work_eye += work_totals() - before;
+        }
+        if (!found) {
             vec3 c;
             if (miss_contribution(e, c)) {
                 color = add_exact(color, c);

@@ -144,6 +144,8 @@ vec3 light_add(vec3 c, uint li_, vec3 tr, float dist, vec3 term) {
 vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front, bool weighted) {
     PRECISE vec3 c = mat.ka.xyz * g.ambient.xyz;
     bool highlight_t = transmit_highlight(mat);
+    // The feelers' work is theirs (work_shadow).
+    uvec3 before = work_totals();
     uint li_ = 0u;
     for (; li_ < g.counts.z; li_++) {
         vec3 o;
@@ -165,6 +167,7 @@ vec3 shade(Material mat, vec3 p, vec3 d, vec3 n, vec3 ngf, bool front, bool weig
     if (li_ != g.counts.z) {
         loops_cut += 1u;
     }
+    work_shadow += work_totals() - before;
     return c;
 }
 

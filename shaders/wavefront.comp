@@ -175,6 +175,10 @@ void main() {
         Hit h;
         uint pi;
         bool found = closest_hit(r, pre, INF, h, pi);
+        if (e.depth == 0u) {
+            // An eye ray's work is its own (work_eye).
+            work_eye = work_totals();
+        }
         hits[i] = WfHit(h.t, h.u, h.v, found ? pi : NO_NODE);
     }
     flush_counts();
@@ -278,6 +282,8 @@ void main() {
         Ray r = Ray(f.o, f.l);
         RayPre pre = ray_pre(f.l);
         feelers[i].tr = transmittance(r, pre, f.dist, f.light);
+        // Every query of this stage is a feeler's (work_shadow).
+        work_shadow = work_totals();
     }
     flush_counts();
 }

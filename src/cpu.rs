@@ -313,7 +313,10 @@ fn trace_packet<F: Real, const P: usize>(
         rays[j].d = eye_dir::<F>(g, x, y);
     }
     let pres = rays.map(|r| RayPre::new(r.d, s.has(FEAT_TRIANGLE)));
+    let before = work.totals();
     let hits = closest_hit_packet(s, &rays, &pres, F::infinity(), work);
+    let now = work.totals();
+    Work::credit(&mut work.eye, before, now);
     let mut out = [[0f32; 3]; P];
     for j in 0..n {
         out[j] = trace_ray_from(s, rays[j], Some(hits[j]), stats, work).to_f32();

@@ -635,3 +635,68 @@ fn light_buffers_render_every_scene_bit_for_bit() {
         }
     }
 }
+
+/// The work counters split by the kind of ray that asked (`Work::eye`,
+/// `Work::shadow`, what is left being the reflected and refracted rays'),
+/// and the deepest walk stack (`Work::stack`), on SPD balls (reflective
+/// spheres over a plane, three lights) under the BVH and the grid:
+/// - the eye share is the work of the eye rays' closest hits, counted
+///   here ray by ray through `closest_hit` (corner sampling: the
+///   (W+1)×(H+1) lattice's rays from the camera);
+/// - without secondary rays (max depth 0) the eye and feeler shares make
+///   the totals; with them the eye share is unchanged and the rest grows;
+/// - the BVH's walks push (a stack of at least one entry, within the
+///   stack's size); the grid keeps no stack.
+#[test]
+fn work_counters_split_by_kind_of_ray() {
+    use whitted::constants::BVH_STACK_SIZE;
+    use whitted::pack::Accel;
+    use whitted::trace::sample::eye_dir;
+    let balls = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Balls, Some(2)).unwrap();
+    for accel in [Accel::Bvh, Accel::Grid] {
+        let settings = |max_depth: u32| Settings {
+            accel,
+            width: Some(48),
+            height: Some(40),
+            max_depth,
+            ..pack::Preset::Spd.settings()
+        };
+        let p0 = pack::pack(&balls, &settings(0)).unwrap();
+        let p5 = pack::pack(&balls, &settings(5)).unwrap();
+        let (f0, f5) = (cpu::render(&p0, &|_, _| {}), cpu::render(&p5, &|_, _| {}));
+        let (w0, w5) = (f0.work, f5.work);
+
+        let s = SceneView::new(&p5);
+        let g = &p5.globals;
+        let mut direct = Work::default();
+        for y in 0..=g.image[1] {
+            for x in 0..=g.image[0] {
+                let d = eye_dir::<f32>(g, x as f32, y as f32);
+                let ray = Ray {
+                    o: v3(0.0, 0.0, 0.0),
+                    d,
+                };
+                closest_hit(&s, &ray, &RayPre::new(d, true), f32::INFINITY, &mut direct);
+            }
+        }
+        assert_eq!(f5.stats.eye, u64::from((g.image[0] + 1) * (g.image[1] + 1)));
+        assert_eq!(w5.eye, direct.totals(), "{accel:?}: eye share");
+        assert_eq!(w0.eye, w5.eye, "{accel:?}: eye share at depth 0 and 5");
+
+        let sum = |a: [u64; 3], b: [u64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+        assert_eq!(sum(w0.eye, w0.shadow), w0.totals(), "{accel:?}: depth 0");
+        assert!(w0.shadow[0] > 0, "{accel:?}: no feeler tests");
+        assert!(f5.stats.reflect > 0);
+        let secondary = w5.tests - w5.eye[0] - w5.shadow[0];
+        assert!(secondary > 0, "{accel:?}: no secondary tests: {w5:?}");
+        assert!(w5.shadow[0] > w0.shadow[0], "{accel:?}: {w0:?} {w5:?}");
+        match accel {
+            Accel::Bvh => assert!(
+                (1..=BVH_STACK_SIZE).contains(&w5.stack),
+                "{accel:?}: stack {}",
+                w5.stack
+            ),
+            _ => assert_eq!(w5.stack, 0, "{accel:?}: stack"),
+        }
+    }
+}

@@ -144,7 +144,14 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
                 "intersection_tests": frame.work.tests,
                 "cells_visited": frame.work.cells,
                 "nodes_visited": frame.work.nodes,
+                // The most children a BVH walk (or the octree's stack
+                // walk) held pushed at once.
+                "deepest_stack": frame.work.stack,
             },
+            // The same split by the kind of ray that asked: the eye rays'
+            // closest hits, the reflected and refracted rays' (secondary),
+            // the shadow feelers'; totals and per ray of that kind.
+            "work_by_ray": work_by_ray(&frame.stats, &frame.work),
             // The same over every ray counted (eye, reflected, refracted,
             // feelers): what one ray costs the structure.
             "work_per_ray": {
@@ -222,4 +229,36 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
         );
     }
     Ok(0)
+}
+
+/// `--stats`' `work_by_ray`: the work counters of each kind of ray (eye,
+/// secondary: reflected and refracted, shadow), in all and per ray of
+/// that kind (`Work::eye`, `Work::shadow`; the secondary rays' share is
+/// what is left).
+fn work_by_ray(stats: &crate::trace::RayStats, w: &crate::trace::query::Work) -> serde_json::Value {
+    let total = w.totals();
+    let secondary: [u64; 3] = std::array::from_fn(|k| {
+        total[k]
+            .saturating_sub(w.eye[k])
+            .saturating_sub(w.shadow[k])
+    });
+    let kind = |c: [u64; 3], rays: u64| {
+        let per = |n: u64| n as f64 / rays.max(1) as f64;
+        serde_json::json!({
+            "rays": rays,
+            "intersection_tests": c[0],
+            "cells_visited": c[1],
+            "nodes_visited": c[2],
+            "per_ray": {
+                "intersection_tests": per(c[0]),
+                "cells_visited": per(c[1]),
+                "nodes_visited": per(c[2]),
+            },
+        })
+    };
+    serde_json::json!({
+        "eye": kind(w.eye, stats.eye),
+        "secondary": kind(secondary, stats.reflect + stats.refract),
+        "shadow": kind(w.shadow, stats.shadow),
+    })
 }

@@ -661,15 +661,21 @@ pub fn calibration_refusal(packed: &Packed) -> Option<String> {
     }
 }
 
+/// Bytes of a kernel's counters buffer (`shaders/counts.glsl`: 25 words).
+pub(crate) const COUNTERS_BYTES: u64 = 25 * 4;
+
 /// Ray counts, work counters and cut loops from a kernel's counters
 /// buffer (`shaders/counts.glsl`).
 fn read_counts(counters: &Buffer) -> Result<(RayStats, crate::trace::query::Work, u32), GpuError> {
-    let c: [u32; 12] = bytemuck::pod_read_unaligned(counters.read(48)?);
-    let wide = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
+    let c: [u32; 25] = bytemuck::pod_read_unaligned(counters.read(COUNTERS_BYTES as usize)?);
+    let wide = |at: usize| c[at] as u64 | (c[at + 1] as u64) << 32;
     let work = crate::trace::query::Work {
-        tests: wide(c[6], c[7]),
-        cells: wide(c[8], c[9]),
-        nodes: wide(c[10], c[11]),
+        tests: wide(6),
+        cells: wide(8),
+        nodes: wide(10),
+        eye: [wide(12), wide(14), wide(16)],
+        shadow: [wide(18), wide(20), wide(22)],
+        stack: c[24],
         ..Default::default()
     };
     let stats = RayStats {
@@ -1586,7 +1592,7 @@ impl Gpu {
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, opts)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
-        let counters = Buffer::readback(&self.ctx, "counters", 48)?;
+        let counters = Buffer::readback(&self.ctx, "counters", COUNTERS_BYTES)?;
         let mut binds = scene.bindings();
         binds.push((7, &samples));
         binds.push((8, &counters));

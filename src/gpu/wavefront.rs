@@ -238,7 +238,7 @@ impl Gpu {
         let cmds = Commands::new(&self.ctx)?;
         let scene = self.upload_scene(&cmds, packed, opts)?;
         let samples = Buffer::readback(&self.ctx, "samples", out_bytes)?;
-        let counters = Buffer::readback(&self.ctx, "counters", 48)?;
+        let counters = Buffer::readback(&self.ctx, "counters", super::COUNTERS_BYTES)?;
         let queue = Buffer::readback(&self.ctx, "wavefront queue lengths", 16)?;
         let spp = if corners { 1 } else { g.image[2] };
         let max_samples = dispatch::max_tile_samples(g.trace[0], g.counts[2], MAX_TILE_RAYS);

@@ -162,6 +162,7 @@ pub fn bvh_walk<F: Real>(
                         stack_slot[sp] = link * BVH_WIDTH + j as u32;
                         sp += ((rest >> j) & 1) as usize;
                     }
+                    work.stack_at(sp);
                     slot = 1 + link * BVH_WIDTH + k as u32;
                     count = node.count[k];
                     link = node.link[k];
@@ -200,6 +201,7 @@ pub fn bvh_walk<F: Real>(
                         stack_t[sp] = te[order[j]];
                         sp += 1;
                     }
+                    work.stack_at(sp);
                     let k = order[0];
                     slot = 1 + link * BVH_WIDTH + k as u32;
                     count = node.count[k];

@@ -332,6 +332,7 @@ pub fn octree_traverse_stack<F: Real>(
                 stack[sp] = seq[k];
                 sp += 1;
             }
+            work.stack_at(sp);
             cur = seq[0];
             continue;
         }

@@ -515,6 +515,7 @@ pub fn bvh_walk_packet<F: Real, const P: usize>(
                         stack_t[sp] = te[order[j]];
                         sp += 1;
                     }
+                    work.stack_at(sp);
                     let k = order[0];
                     slot = link * BVH_WIDTH + k as u32;
                     m = tl[k];

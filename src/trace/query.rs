@@ -25,6 +25,16 @@ pub struct Work {
     pub cells: u64,
     /// BVH nodes visited (each one tests its up to four children's boxes).
     pub nodes: u64,
+    /// The eye rays' share of `tests`, `cells` and `nodes` (their closest
+    /// hits, by a packet or alone): `Work::credit`.
+    pub eye: [u64; 3],
+    /// The shadow feelers' share of `tests`, `cells` and `nodes` (the
+    /// rest is the reflected and refracted rays' closest hits).
+    pub shadow: [u64; 3],
+    /// The deepest any structure walk's stack went: the most children a
+    /// BVH walk (or octree stack walk) held pushed at once (the shader's
+    /// `BVH_STACK_SIZE` bounds it).
+    pub stack: u32,
     /// Shadow cache (Haines & Greenberg's "last blocker"): per level of the
     /// ray tree and per light, 1 + the index of the opaque primitive that
     /// last blocked a feeler to it from that level (0: none). Tested
@@ -63,11 +73,40 @@ impl Work {
         &mut self.shadow_leaf[self.level % SHADOW_CACHE_LEVELS as usize][light]
     }
 
-    /// Adds `o`'s counters (not its cache).
+    /// Adds `o`'s counters (not its cache); the deepest stack is the
+    /// deeper of the two.
     pub fn add(&mut self, o: &Work) {
         self.tests += o.tests;
         self.cells += o.cells;
         self.nodes += o.nodes;
+        for k in 0..3 {
+            self.eye[k] += o.eye[k];
+            self.shadow[k] += o.shadow[k];
+        }
+        self.stack = self.stack.max(o.stack);
+    }
+
+    /// The three counters (tests, cells, nodes) as they stand, to credit
+    /// what a query adds to them to a kind of ray (`Work::credit`).
+    #[inline(always)]
+    pub fn totals(&self) -> [u64; 3] {
+        [self.tests, self.cells, self.nodes]
+    }
+
+    /// Credits what the counters grew by since `before` (`totals`) to
+    /// `share` (`eye` or `shadow`). The shaders do the same around the
+    /// same queries (counts.glsl).
+    #[inline(always)]
+    pub fn credit(share: &mut [u64; 3], before: [u64; 3], now: [u64; 3]) {
+        for k in 0..3 {
+            share[k] += now[k] - before[k];
+        }
+    }
+
+    /// Notes a walk's stack holding `depth` pushed entries.
+    #[inline(always)]
+    pub fn stack_at(&mut self, depth: usize) {
+        self.stack = self.stack.max(depth as u32);
     }
 }
 

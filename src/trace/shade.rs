@@ -56,6 +56,8 @@ pub fn shade<F: Real>(
     let ksr = F::of(mat.ks[0]);
     let kst = F::of(mat.ks[2]);
     let highlight_t = s.has(FEAT_TRANSMIT_HIGHLIGHT) && kst > F::zero();
+    // The feelers' work is theirs (`Work::shadow`).
+    let before = work.totals();
     for (li_index, light) in s.lights.iter().enumerate() {
         let lv = V3::<F>::of(&light.pos) - p;
         let dist = lv.length();
@@ -114,5 +116,7 @@ pub fn shade<F: Real>(
         }
         c += li.mul_elem(term);
     }
+    let now = work.totals();
+    Work::credit(&mut work.shadow, before, now);
     c
 }

@@ -96,7 +96,14 @@ pub fn trace_ray_from<F: Real>(
         let r = Ray { o: e.o, d: e.d };
         let found = first.take().unwrap_or_else(|| {
             let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
-            closest_hit(s, &r, &pre, F::infinity(), work)
+            let before = work.totals();
+            let found = closest_hit(s, &r, &pre, F::infinity(), work);
+            if e.depth == 0 {
+                // An eye ray's work is its own (`Work::eye`).
+                let now = work.totals();
+                Work::credit(&mut work.eye, before, now);
+            }
+            found
         });
         let Some((h, pi)) = found else {
             // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
