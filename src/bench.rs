@@ -78,8 +78,37 @@ pub struct Sample {
     pub cells_per_ray: Option<f64>,
     /// BVH nodes visited per ray.
     pub nodes_per_ray: Option<f64>,
+    /// The same split by the kind of ray (`--stats`' `work_by_ray`).
+    pub by_ray: Option<ByRay>,
     pub rays: Option<u64>,
     pub peak: Option<u64>,
+}
+
+/// Work per ray of each kind, eye, secondary (reflected and refracted)
+/// and shadow, as `--stats` reports it (`work_by_ray`); "steps" are the
+/// cells and nodes visited together. And the deepest walk stack.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ByRay {
+    pub tests: [f64; 3],
+    pub steps: [f64; 3],
+    pub deepest_stack: u64,
+}
+
+impl ByRay {
+    /// From a `--stats` JSON; `None` when it has no `work_by_ray`.
+    pub fn from_stats(j: &serde_json::Value) -> Option<ByRay> {
+        let w = j.get("work_by_ray")?;
+        let mut b = ByRay {
+            deepest_stack: j["work"]["deepest_stack"].as_u64()?,
+            ..ByRay::default()
+        };
+        for (k, kind) in ["eye", "secondary", "shadow"].iter().enumerate() {
+            let per = &w[kind]["per_ray"];
+            b.tests[k] = per["intersection_tests"].as_f64()?;
+            b.steps[k] = per["cells_visited"].as_f64()? + per["nodes_visited"].as_f64()?;
+        }
+        Some(b)
+    }
 }
 
 /// Median, minimum and maximum.
@@ -129,6 +158,8 @@ pub struct Row {
     pub cells_per_ray: Option<f64>,
     /// BVH nodes visited per ray.
     pub nodes_per_ray: Option<f64>,
+    /// The work split by kind of ray.
+    pub by_ray: Option<ByRay>,
     pub rays: Option<u64>,
     pub mrays_per_s: Option<f64>,
     pub peak_bytes: Option<u64>,
@@ -374,6 +405,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                     .as_u64()
                     .filter(|_| total > 0)
                     .map(|c| c as f64 / total as f64),
+                by_ray: ByRay::from_stats(&j),
                 rays: Some(total),
                 peak: j["peak_memory_bytes"].as_u64().or(polled),
             })
@@ -413,6 +445,7 @@ pub fn run_once(plan: &Plan, case: &Case, engine: &Engine, image: &Path) -> Resu
                 tests_per_ray: None,
                 cells_per_ray: None,
                 nodes_per_ray: None,
+                by_ray: None,
                 rays: None,
                 peak,
             })
@@ -567,6 +600,7 @@ pub fn run(plan: &Plan, progress: &dyn Fn(u64, u64)) -> Result<(Vec<Row>, Vec<Fa
                 tests_per_ray: last.and_then(|x| x.tests_per_ray),
                 cells_per_ray: last.and_then(|x| x.cells_per_ray),
                 nodes_per_ray: last.and_then(|x| x.nodes_per_ray),
+                by_ray: last.and_then(|x| x.by_ray),
                 rays,
                 mrays_per_s: match (rays, render) {
                     (Some(r), Some(t)) if t.median > 0.0 => Some(r as f64 / t.median / 1e6),
@@ -665,7 +699,7 @@ pub fn table(rows: &[Row]) -> String {
 }
 
 /// The CSV's columns (`csv`): one per `Row` field, then the failure.
-const CSV_HEADER: [&str; 24] = [
+const CSV_HEADER: [&str; 31] = [
     "scene",
     "family",
     "primitives",
@@ -689,6 +723,13 @@ const CSV_HEADER: [&str; 24] = [
     "tests_per_ray",
     "cells_per_ray",
     "nodes_per_ray",
+    "eye_tests_per_ray",
+    "eye_steps_per_ray",
+    "secondary_tests_per_ray",
+    "secondary_steps_per_ray",
+    "shadow_tests_per_ray",
+    "shadow_steps_per_ray",
+    "deepest_stack",
     "failed",
 ];
 
@@ -722,6 +763,15 @@ pub fn csv(rows: &[Row], failures: &[Failure]) -> Result<String> {
             o(r.tests_per_ray),
             o(r.cells_per_ray),
             o(r.nodes_per_ray),
+            o(r.by_ray.map(|b| b.tests[0])),
+            o(r.by_ray.map(|b| b.steps[0])),
+            o(r.by_ray.map(|b| b.tests[1])),
+            o(r.by_ray.map(|b| b.steps[1])),
+            o(r.by_ray.map(|b| b.tests[2])),
+            o(r.by_ray.map(|b| b.steps[2])),
+            r.by_ray
+                .map(|b| b.deepest_stack.to_string())
+                .unwrap_or_default(),
             String::new(),
         ])?;
     }
@@ -945,6 +995,11 @@ mod tests {
             tests_per_ray: Some(5.5),
             cells_per_ray: Some(9.0),
             nodes_per_ray: None,
+            by_ray: Some(ByRay {
+                tests: [2.5, 3.75, 1.25],
+                steps: [0.5, 9.0, 3.5],
+                deepest_stack: 13,
+            }),
             rays: Some(1_000_000),
             mrays_per_s: Some(5.0),
             peak_bytes: Some(20_000_000),
@@ -978,6 +1033,13 @@ mod tests {
             .nth(1)
             .unwrap()
             .starts_with("balls,spd,7382,512,512,cpu,3,0.3,"));
+        assert!(
+            c.lines()
+                .nth(1)
+                .unwrap()
+                .ends_with(",2.5,0.5,3.75,9,1.25,3.5,13,"),
+            "{c}"
+        );
         let last = c.lines().nth(2).unwrap();
         assert!(last.starts_with("gears,spd,9345,512,512,gpu:llvmpipe,0,"));
         assert!(last.ends_with(",refused, say") || last.ends_with(",\"refused, say\""));

@@ -128,6 +128,14 @@ fn bench_writes_a_row_per_case_and_engine() {
             row[col("wall_max_s")].parse().unwrap(),
         );
         assert!(lo <= med && med <= hi && lo > 0.0);
+        // The work per kind of ray, filled in: every case's eye rays and
+        // feelers test primitives (the spheres and the example scenes
+        // are lit), and the deepest stack is a count.
+        let per = |name: &str| -> f64 { row[col(name)].parse().unwrap() };
+        assert!(per("eye_tests_per_ray") > 0.0, "{row:?}");
+        assert!(per("shadow_tests_per_ray") > 0.0, "{row:?}");
+        assert!(per("eye_steps_per_ray") >= 0.0 && per("secondary_steps_per_ray") >= 0.0);
+        let _: u64 = row[col("deepest_stack")].parse().unwrap();
         if vs {
             let ratio: f64 = row[col("povray_over_this")].parse().unwrap();
             assert!(ratio > 0.0);
