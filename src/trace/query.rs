@@ -95,7 +95,7 @@ impl Work {
 
     /// Credits what the counters grew by since `before` (`totals`) to
     /// `share` (`eye` or `shadow`). The shaders do the same around the
-    /// same queries (counts.glsl).
+    /// same queries (query.glsl's `work_eye` and `work_shadow`).
     #[inline(always)]
     pub fn credit(share: &mut [u64; 3], before: [u64; 3], now: [u64; 3]) {
         for k in 0..3 {
