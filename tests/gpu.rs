@@ -1513,6 +1513,8 @@ fn cli_backend_gpu_end_to_end() {
         "mean FLIP",
         "pixels over",
         "shadow",
+        "work/ray",
+        "secondary",
         "PASS",
     ] {
         assert!(out.contains(k), "validate output lacks {k}: {out}");
@@ -1616,6 +1618,21 @@ fn cli_gpu_math_fast() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["gpu_math"], "fast");
     assert_eq!(v["passed"], true);
+    // Each side's work per kind of ray, beside the verdict.
+    for side in ["cpu", "gpu"] {
+        let w = &v["work_by_ray"][side];
+        assert_eq!(w["eye"]["rays"], 48 * 36, "{side}: {w}");
+        assert!(
+            w["eye"]["intersection_tests"].as_u64().unwrap() > 0,
+            "{side}: {w}"
+        );
+        assert!(
+            w["shadow"]["per_ray"]["intersection_tests"]
+                .as_f64()
+                .unwrap()
+                > 0.0
+        );
+    }
 
     let csv = dir.path().join("b.csv");
     let o = whitted()

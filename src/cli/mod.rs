@@ -56,7 +56,9 @@ pub enum Command {
     ///
     /// Prints max and mean absolute error, RMSE, PSNR, mean FLIP (on the
     /// 8-bit sRGB images), the fraction of pixels over the per-pixel
-    /// tolerance, and each ray count on both sides. Exits 1 when the
+    /// tolerance, each ray count on both sides, and each side's work per
+    /// kind of ray (tests and cells+nodes per eye, secondary and shadow
+    /// ray; informational, docs/gpu.md "Work counters"). Exits 1 when the
     /// images or ray counts are over tolerance (see docs/gpu.md), 0 when
     /// they agree. Uses the device --backend gpu would (lavapipe too).
     ///

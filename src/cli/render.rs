@@ -235,7 +235,10 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
 /// secondary: reflected and refracted, shadow), in all and per ray of
 /// that kind (`Work::eye`, `Work::shadow`; the secondary rays' share is
 /// what is left).
-fn work_by_ray(stats: &crate::trace::RayStats, w: &crate::trace::query::Work) -> serde_json::Value {
+pub(crate) fn work_by_ray(
+    stats: &crate::trace::RayStats,
+    w: &crate::trace::query::Work,
+) -> serde_json::Value {
     let total = w.totals();
     let secondary: [u64; 3] = std::array::from_fn(|k| {
         total[k]

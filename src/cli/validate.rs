@@ -89,6 +89,12 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
             "gpu_math": gopts.math,
             "gpu_kernel": gopts.kernel,
             "comparison": c,
+            // Where each side's walks went, per kind of ray (as render's
+            // --stats; informational, not part of the verdict).
+            "work_by_ray": {
+                "cpu": super::render::work_by_ray(&cpu_frame.stats, &cpu_frame.work),
+                "gpu": super::render::work_by_ray(&gpu_frame.stats, &gpu_frame.work),
+            },
             "passed": c.passed(),
             "seconds": { "cpu": cpu_frame.seconds, "gpu_wall": gpu_frame.seconds, "gpu": gpu_frame.device_seconds },
         });
@@ -133,6 +139,30 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
                 r.reference,
                 r.test,
                 r.diff()
+            );
+        }
+        // The walks' work per kind of ray on each side (not part of the
+        // verdict): tests, and cells and nodes together, per ray.
+        println!(
+            "  work/ray   {:>12} {:>12} {:>12} {:>12}",
+            "cpu tests", "gpu tests", "cpu steps", "gpu steps"
+        );
+        let (cw, gw) = (
+            super::render::work_by_ray(&cpu_frame.stats, &cpu_frame.work),
+            super::render::work_by_ray(&gpu_frame.stats, &gpu_frame.work),
+        );
+        for kind in ["eye", "secondary", "shadow"] {
+            let per = |w: &serde_json::Value, what: &str| {
+                w[kind]["per_ray"][what].as_f64().unwrap_or(0.0)
+            };
+            let steps = |w: &serde_json::Value| per(w, "cells_visited") + per(w, "nodes_visited");
+            println!(
+                "  {:<10} {:>12.3} {:>12.3} {:>12.3} {:>12.3}",
+                kind,
+                per(&cw, "intersection_tests"),
+                per(&gw, "intersection_tests"),
+                steps(&cw),
+                steps(&gw)
             );
         }
         println!(
