@@ -44,7 +44,7 @@ uint work_cells = 0u;
 uint work_nodes = 0u;
 // Their shares: the eye rays' closest hits and the shadow feelers'
 // (Work::eye, Work::shadow), credited around the same queries as on the
-// CPU (Work::credit); and the deepest a structure walk's stack went
+// CPU (Work::credit_eye, credit_shadow); and the deepest a structure walk's stack went
 // (Work::stack).
 uvec3 work_eye = uvec3(0u);
 uvec3 work_shadow = uvec3(0u);

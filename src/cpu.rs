@@ -315,8 +315,7 @@ fn trace_packet<F: Real, const P: usize>(
     let pres = rays.map(|r| RayPre::new(r.d, s.has(FEAT_TRIANGLE)));
     let before = work.totals();
     let hits = closest_hit_packet(s, &rays, &pres, F::infinity(), work);
-    let now = work.totals();
-    Work::credit(&mut work.eye, before, now);
+    work.credit_eye(before);
     let mut out = [[0f32; 3]; P];
     for j in 0..n {
         out[j] = trace_ray_from(s, rays[j], Some(hits[j]), stats, work).to_f32();

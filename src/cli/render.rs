@@ -233,19 +233,14 @@ pub fn run(a: RenderArgs, ui: Ui) -> Result<u8> {
 
 /// `--stats`' `work_by_ray`: the work counters of each kind of ray (eye,
 /// secondary: reflected and refracted, shadow), in all and per ray of
-/// that kind (`Work::eye`, `Work::shadow`; the secondary rays' share is
-/// what is left).
+/// that kind (`Work::by_kind`).
 pub(crate) fn work_by_ray(
     stats: &crate::trace::RayStats,
     w: &crate::trace::query::Work,
 ) -> serde_json::Value {
-    let total = w.totals();
-    let secondary: [u64; 3] = std::array::from_fn(|k| {
-        total[k]
-            .saturating_sub(w.eye[k])
-            .saturating_sub(w.shadow[k])
-    });
-    let kind = |c: [u64; 3], rays: u64| {
+    let (work, rays) = (w.by_kind(), stats.by_kind());
+    let kind = |k: usize| {
+        let (c, rays) = (work[k], rays[k]);
         let per = |n: u64| n as f64 / rays.max(1) as f64;
         serde_json::json!({
             "rays": rays,
@@ -260,8 +255,8 @@ pub(crate) fn work_by_ray(
         })
     };
     serde_json::json!({
-        "eye": kind(w.eye, stats.eye),
-        "secondary": kind(secondary, stats.reflect + stats.refract),
-        "shadow": kind(w.shadow, stats.shadow),
+        "eye": kind(0),
+        "secondary": kind(1),
+        "shadow": kind(2),
     })
 }

@@ -147,22 +147,16 @@ pub fn run(a: ValidateArgs, ui: Ui) -> Result<u8> {
             "  work/ray   {:>12} {:>12} {:>12} {:>12}",
             "cpu tests", "gpu tests", "cpu steps", "gpu steps"
         );
-        let (cw, gw) = (
-            super::render::work_by_ray(&cpu_frame.stats, &cpu_frame.work),
-            super::render::work_by_ray(&gpu_frame.stats, &gpu_frame.work),
-        );
-        for kind in ["eye", "secondary", "shadow"] {
-            let per = |w: &serde_json::Value, what: &str| {
-                w[kind]["per_ray"][what].as_f64().unwrap_or(0.0)
-            };
-            let steps = |w: &serde_json::Value| per(w, "cells_visited") + per(w, "nodes_visited");
+        // Per ray of kind k on a frame: (tests, cells + nodes).
+        let per = |f: &crate::cpu::Frame, k: usize| {
+            let (w, rays) = (f.work.by_kind()[k], f.stats.by_kind()[k].max(1) as f64);
+            (w[0] as f64 / rays, (w[1] + w[2]) as f64 / rays)
+        };
+        for (k, kind) in ["eye", "secondary", "shadow"].iter().enumerate() {
+            let (c, g) = (per(&cpu_frame, k), per(&gpu_frame, k));
             println!(
                 "  {:<10} {:>12.3} {:>12.3} {:>12.3} {:>12.3}",
-                kind,
-                per(&cw, "intersection_tests"),
-                per(&gw, "intersection_tests"),
-                steps(&cw),
-                steps(&gw)
+                kind, c.0, g.0, c.1, g.1
             );
         }
         println!(

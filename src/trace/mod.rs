@@ -88,4 +88,9 @@ impl RayStats {
     pub fn total(&self) -> u64 {
         self.eye + self.reflect + self.refract + self.shadow
     }
+    /// The rays of each kind `Work::by_kind` splits the work by: eye,
+    /// secondary (reflected and refracted), shadow.
+    pub fn by_kind(&self) -> [u64; 3] {
+        [self.eye, self.reflect + self.refract, self.shadow]
+    }
 }

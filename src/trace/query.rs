@@ -26,7 +26,7 @@ pub struct Work {
     /// BVH nodes visited (each one tests its up to four children's boxes).
     pub nodes: u64,
     /// The eye rays' share of `tests`, `cells` and `nodes` (their closest
-    /// hits, by a packet or alone): `Work::credit`.
+    /// hits, by a packet or alone): `Work::credit_eye`.
     pub eye: [u64; 3],
     /// The shadow feelers' share of `tests`, `cells` and `nodes` (the
     /// rest is the reflected and refracted rays' closest hits).
@@ -87,20 +87,42 @@ impl Work {
     }
 
     /// The three counters (tests, cells, nodes) as they stand, to credit
-    /// what a query adds to them to a kind of ray (`Work::credit`).
+    /// what a query adds to them to a kind of ray (`Work::credit_eye`,
+    /// `Work::credit_shadow`).
     #[inline(always)]
     pub fn totals(&self) -> [u64; 3] {
         [self.tests, self.cells, self.nodes]
     }
 
-    /// Credits what the counters grew by since `before` (`totals`) to
-    /// `share` (`eye` or `shadow`). The shaders do the same around the
-    /// same queries (query.glsl's `work_eye` and `work_shadow`).
+    /// Credits what the counters grew by since `before` (`totals`) to the
+    /// eye rays' share. The shaders do the same around the same queries
+    /// (query.glsl's `work_eye` and `work_shadow`).
     #[inline(always)]
-    pub fn credit(share: &mut [u64; 3], before: [u64; 3], now: [u64; 3]) {
+    pub fn credit_eye(&mut self, before: [u64; 3]) {
+        let now = self.totals();
         for k in 0..3 {
-            share[k] += now[k] - before[k];
+            self.eye[k] += now[k] - before[k];
         }
+    }
+
+    /// Credits what the counters grew by since `before` to the feelers'
+    /// share (`credit_eye`).
+    #[inline(always)]
+    pub fn credit_shadow(&mut self, before: [u64; 3]) {
+        let now = self.totals();
+        for k in 0..3 {
+            self.shadow[k] += now[k] - before[k];
+        }
+    }
+
+    /// The counters (tests, cells, nodes) of each kind of ray: eye,
+    /// secondary (reflected and refracted: what the other two leave of
+    /// the totals), shadow.
+    pub fn by_kind(&self) -> [[u64; 3]; 3] {
+        let total = self.totals();
+        let secondary =
+            std::array::from_fn(|k| total[k].saturating_sub(self.eye[k] + self.shadow[k]));
+        [self.eye, secondary, self.shadow]
     }
 
     /// Notes a walk's stack holding `depth` pushed entries.

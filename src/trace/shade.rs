@@ -116,7 +116,6 @@ pub fn shade<F: Real>(
         }
         c += li.mul_elem(term);
     }
-    let now = work.totals();
-    Work::credit(&mut work.shadow, before, now);
+    work.credit_shadow(before);
     c
 }

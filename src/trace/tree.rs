@@ -100,8 +100,7 @@ pub fn trace_ray_from<F: Real>(
             let found = closest_hit(s, &r, &pre, F::infinity(), work);
             if e.depth == 0 {
                 // An eye ray's work is its own (`Work::eye`).
-                let now = work.totals();
-                Work::credit(&mut work.eye, before, now);
+                work.credit_eye(before);
             }
             found
         });
