@@ -15,6 +15,7 @@
 //! The GPU's buffers are listed by [`gpu_buffers`], which the GPU backend
 //! checks against the device's `maxStorageBufferRange` and heap.
 
+use crate::pack::grid::{WALK_PRIM_BYTES, WALK_REF_BYTES};
 use std::fmt;
 
 /// Share of physical memory a run may use by default. The estimate counts
@@ -452,7 +453,7 @@ impl Need {
     pub fn grid_bytes(&self) -> u64 {
         self.cells
             .saturating_mul(CELL_BYTES)
-            .saturating_add(self.refs.saturating_mul(REF_BYTES))
+            .saturating_add(self.refs.saturating_mul(self.ref_bytes()))
     }
 
     /// Bytes of the BVH's nodes that stay for the render (at most).
@@ -475,12 +476,36 @@ impl Need {
         }
     }
 
+    /// Whether the grid's walk arrays are counted (`pack::grid::Walk`):
+    /// for the grid and the hybrid, whose grid files them too (and drops
+    /// them before the render: counted all the same).
+    fn walk(&self) -> bool {
+        !self.bvh && !self.octree
+    }
+
+    /// Bytes a reference keeps for the render: its u32, and under the
+    /// grid its walk bits.
+    fn ref_bytes(&self) -> u64 {
+        REF_BYTES + if self.walk() { WALK_REF_BYTES } else { 0 }
+    }
+
+    /// Bytes of the grid walk's arrays that stay for the render (their
+    /// references' bits are in `grid_bytes`).
+    fn walk_prim_bytes(&self) -> u64 {
+        if self.walk() {
+            self.bounded.saturating_mul(WALK_PRIM_BYTES)
+        } else {
+            0
+        }
+    }
+
     /// The packed scene's bytes that stay for the render.
     fn packed_bytes(&self) -> u64 {
         self.prims
             .saturating_mul(PRIM_BYTES)
             .saturating_add(self.extra.saturating_mul(EXTRA_BYTES))
             .saturating_add(self.grid_bytes())
+            .saturating_add(self.walk_prim_bytes())
             .saturating_add(self.bvh_bytes())
     }
 
@@ -492,7 +517,8 @@ impl Need {
             .saturating_add(self.prims.saturating_mul(2 * PRIM_BYTES))
             .saturating_add(self.extra.saturating_mul(2 * EXTRA_BYTES))
             .saturating_add(self.cells.saturating_mul(CELL_BUILD_BYTES))
-            .saturating_add(self.refs.saturating_mul(2 * REF_BYTES))
+            .saturating_add(self.refs.saturating_mul(2 * self.ref_bytes()))
+            .saturating_add(self.walk_prim_bytes().saturating_mul(2))
             .saturating_add(self.bvh_build_bytes())
     }
 
@@ -538,7 +564,8 @@ impl Need {
                 bytes: self
                     .cells
                     .saturating_mul(CELL_BUILD_BYTES)
-                    .saturating_add(self.refs.saturating_mul(2 * REF_BYTES)),
+                    .saturating_add(self.refs.saturating_mul(2 * self.ref_bytes()))
+                    .saturating_add(self.walk_prim_bytes().saturating_mul(2)),
             },
         ];
         if self.bvh {
@@ -564,7 +591,8 @@ impl Need {
         if pack > l || render > l {
             return 0;
         }
-        ((l - pack) / (2 * REF_BYTES)).min((l - render) / REF_BYTES)
+        let r = self.ref_bytes();
+        ((l - pack) / (2 * r)).min((l - render) / r)
     }
 }
 
@@ -695,7 +723,7 @@ mod tests {
         let msg = e.to_string();
         assert_eq!(
             msg,
-            "the grid needs 18 GiB for 1.0 M cells and 2.4 G references (limit 1.0 GiB, \
+            "the grid needs 22 GiB for 1.0 M cells and 2.4 G references (limit 1.0 GiB, \
              as asked; raise it with --memory-limit, or choose a coarser --grid)"
         );
     }

@@ -18,8 +18,9 @@
 //! lists in more cells (a pile of identical spheres), the coarser grid
 //! traces as fast in a fraction of the memory.
 
-use super::layout::{cell_pack, cell_unpack};
-use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, SKIP_MAX};
+use super::layout::{cell_pack, cell_unpack, Prim};
+use super::pages::Pages;
+use crate::constants::{GRID_DENSITY, GRID_MAX_DIM, KIND_SPHERE, SKIP_MAX};
 use rayon::prelude::*;
 
 /// Most references a grid may hold: `cell_start` holds u32 offsets (the
@@ -83,6 +84,9 @@ pub struct Grid {
     /// one byte per cell, four to a word (see `skip_distances`).
     pub cell_start: Vec<u32>,
     pub refs: Vec<u32>,
+    /// Per reference, its test-once bits (`Walk::bits`), written as it is
+    /// filed.
+    pub bits: Vec<u8>,
 }
 
 /// Which pass of the build a progress report is about.
@@ -406,20 +410,27 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
         (a <= b).then_some((a, b))
     };
     // Calls `f` with each cell of range `r` whose z is in za..=zb (within
-    // slab `s`), as an index from the slab's first cell.
-    let for_cells = |r: &(u32, u32), s: usize, (za, zb): (u32, u32), f: &mut dyn FnMut(usize)| {
-        let l = cell_unpack(r.0);
-        let h = cell_unpack(r.1);
-        let base = z0[s] * plane;
-        for z in za..=zb {
-            for y in l[1]..=h[1] {
-                let row = (y as usize + dims[1] as usize * z as usize) * dims[0] as usize - base;
-                for x in l[0]..=h[0] {
-                    f(row + x as usize);
+    // slab `s`), as an index from the slab's first cell, and with the
+    // reference's test-once bits there (`Walk::bits`: on each axis a, bit
+    // 2a when the range goes on below the cell, bit 2a + 1 above it).
+    let for_cells =
+        |r: &(u32, u32), s: usize, (za, zb): (u32, u32), f: &mut dyn FnMut(usize, u8)| {
+            let l = cell_unpack(r.0);
+            let h = cell_unpack(r.1);
+            let base = z0[s] * plane;
+            let on = |c: u32, a: usize| ((c > l[a]) as u8 | ((c < h[a]) as u8) << 1) << (2 * a);
+            for z in za..=zb {
+                let bz = on(z, 2);
+                for y in l[1]..=h[1] {
+                    let byz = bz | on(y, 1);
+                    let row =
+                        (y as usize + dims[1] as usize * z as usize) * dims[0] as usize - base;
+                    for x in l[0]..=h[0] {
+                        f(row + x as usize, byz | on(x, 0));
+                    }
                 }
             }
-        }
-    };
+        };
     // The offsets, then the distances four to a word: allocated once.
     let mut counts = Vec::with_capacity(ncells + 1 + ncells.div_ceil(4));
     counts.resize(ncells + 1, 0u32);
@@ -431,7 +442,7 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
             .for_each(|(s, mine)| {
                 for r in chunk {
                     if let Some(zs) = in_slab(r, s) {
-                        for_cells(r, s, zs, &mut |c| mine[c] += 1);
+                        for_cells(r, s, zs, &mut |c, _| mine[c] += 1);
                     }
                 }
             });
@@ -441,6 +452,7 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
     }
     let mut fill = counts.clone();
     let mut refs = vec![0u32; counts[ncells] as usize];
+    let mut bits = vec![0u8; refs.len()];
     let ref_sizes: Vec<usize> = z0
         .windows(2)
         .map(|w| (counts[w[1] * plane] - counts[w[0] * plane]) as usize)
@@ -451,15 +463,18 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
         split_sizes(&mut fill[..ncells], &cell_sizes)
             .into_par_iter()
             .zip(split_sizes(&mut refs, &ref_sizes))
+            .zip(split_sizes(&mut bits, &ref_sizes))
             .enumerate()
-            .for_each(|(s, (next, mine))| {
+            .for_each(|(s, ((next, mine), my_bits))| {
                 // `fill` holds offsets into the whole of `refs`.
                 let base = counts[z0[s] * plane];
                 for (j, r) in chunk.iter().enumerate() {
                     if let Some(zs) = in_slab(r, s) {
                         let p = first + j as u32;
-                        for_cells(r, s, zs, &mut |c| {
-                            mine[(next[c] - base) as usize] = p;
+                        for_cells(r, s, zs, &mut |c, b| {
+                            let k = (next[c] - base) as usize;
+                            mine[k] = p;
+                            my_bits[k] = b;
                             next[c] += 1;
                         });
                     }
@@ -488,7 +503,54 @@ fn file(bounds: &[Bounds], l: Layout, ranges: Vec<(u32, u32)>, progress: Progres
         ranges,
         cell_start,
         refs,
+        bits,
     }
+}
+
+/// The CPU grid walk's own arrays (`trace::grid::grid_traverse`; not
+/// uploaded: the shader reads its primitives' words through texel
+/// fetches). With them the walk reads a primitive's 64-byte record only
+/// to test a primitive that is not a sphere, or to take a hit: per
+/// reference whether it was tested in the previous cell (written as the
+/// grid files it), per sphere its test's inputs; `Packed::walk`
+/// holds them for the plain grid (not the hybrid, whose references also
+/// name nested trees), empty otherwise.
+#[derive(Clone, Debug, Default)]
+pub struct Walk {
+    /// Per reference (parallel to `refs`), the test-once rule
+    /// (`trace::grid::seen_before`) for each way the walk can have come
+    /// into the cell: bit 2a is set when the primitive's cell range holds
+    /// the cell below on axis a (a walk that stepped up along a tested it
+    /// there), bit 2a + 1 when it holds the cell above.
+    pub bits: Pages<u8>,
+    /// Per grid primitive (the first `globals.counts.x`): a sphere's centre
+    /// and r² (its record's first word, all its test reads), otherwise
+    /// (0, 0, 0, −1); empty when none is a sphere.
+    pub spheres: Pages<[f32; 4]>,
+}
+
+/// Bytes `Walk` keeps per reference and per grid primitive (the memory
+/// budget counts them: `budget::Need`).
+pub const WALK_REF_BYTES: u64 = 1;
+pub const WALK_PRIM_BYTES: u64 = 16;
+
+/// `Walk::spheres` for the grid's primitives `prims`: empty when none is
+/// a sphere (the walk then reads every record to test it).
+pub fn sphere_records(prims: &[Prim]) -> Vec<[f32; 4]> {
+    if !prims.iter().any(|p| p.kind() == KIND_SPHERE) {
+        return Vec::new();
+    }
+    prims
+        .par_iter()
+        .with_min_len(PARALLEL_CHUNK)
+        .map(|p| {
+            if p.kind() == KIND_SPHERE {
+                p.a
+            } else {
+                [0.0, 0.0, 0.0, -1.0]
+            }
+        })
+        .collect()
 }
 
 /// `v` cut into consecutive slices of the given lengths (which sum to at

@@ -286,6 +286,9 @@ pub struct Packed {
     /// the primitive indices; empty without them (`globals.flags.w` = 0).
     pub lb_start: Pages<u32>,
     pub lb_refs: Pages<u32>,
+    /// The CPU grid walk's own arrays, derived from the above (not
+    /// uploaded; empty but under the plain grid): `grid::Walk`.
+    pub walk: grid::Walk,
     pub lightbuf: LightBufInfo,
     pub grid: GridInfo,
     pub accel: AccelInfo,
@@ -1143,6 +1146,7 @@ pub fn pack_with_progress(
     let mut octree_shape = None;
     // The hybrid's nested cells and their references, when built.
     let mut nested_counts = (0, 0);
+    let mut walk = grid::Walk::default();
     let max_refs = |cells: u64| need.max_refs(budget, cells);
     // The primitives the structure holds, by their index in the tree's
     // order: the bounded ones, then (under the BVH) the giants.
@@ -1219,6 +1223,7 @@ pub fn pack_with_progress(
             ranges: Vec::new(),
             cell_start: oct.nodes,
             refs: oct.refs,
+            bits: Vec::new(),
         };
         (g, bvh::Bvh::default())
     } else {
@@ -1257,6 +1262,13 @@ pub fn pack_with_progress(
         for (i, (mut p, _)) in b.bounded.iter().copied().enumerate() {
             (p.cell_lo, p.cell_hi) = g.ranges[i];
             prims.push(p);
+        }
+        let bits = std::mem::take(&mut g.bits);
+        if structure == Accel::Grid {
+            walk = grid::Walk {
+                bits: bits.into(),
+                spheres: grid::sphere_records(&prims).into(),
+            };
         }
         let mut tree = bvh::Bvh::default();
         if structure == Accel::Hybrid {
@@ -1425,7 +1437,10 @@ pub fn pack_with_progress(
             lb.res,
         ],
     };
-    let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4;
+    // With the CPU walk's own arrays (`grid::Walk`).
+    let grid_bytes = (g.cell_start.len() + g.refs.len()) * 4
+        + std::mem::size_of_val(&walk.bits[..])
+        + std::mem::size_of_val(&walk.spheres[..]);
     let grid_info = if !matches!(structure, Accel::Grid | Accel::Hybrid) {
         GridInfo {
             duplicates,
@@ -1481,6 +1496,7 @@ pub fn pack_with_progress(
         bvh: tree.nodes.into(),
         lb_start: lb.start.into(),
         lb_refs: lb.refs.into(),
+        walk,
         lightbuf,
         grid: grid_info,
         accel,
@@ -1804,7 +1820,7 @@ mod tests {
         assert_eq!(e.need.cells, 1023 * 1023 * 1023);
         let msg = e.to_string();
         assert!(
-            msg.starts_with("the grid needs 23 GiB for 1.1 G cells and 1.1 G references"),
+            msg.starts_with("the grid needs 25 GiB for 1.1 G cells and 1.1 G references"),
             "{msg}"
         );
         assert!(
