@@ -1026,3 +1026,147 @@ fn glass_feelers(s: &Scene, p: &Packed) {
     }
     assert!(through_glass > 300, "{through_glass} feelers through glass");
 }
+
+/// `random_scene` with only its spheres (`Some(true)`), with none of them
+/// (`Some(false)`), or whole (`None`); the floor polygon stays.
+fn scene_of_kinds(seed: u64, count: usize, clustered: bool, spheres: Option<bool>) -> Scene {
+    let mut s = random_scene(seed, count, clustered);
+    if let Some(keep) = spheres {
+        s.objects.retain(|o| {
+            matches!(o.shape, Shape::Polygon { .. })
+                || matches!(o.shape, Shape::Sphere { .. }) == keep
+        });
+    }
+    s
+}
+
+/// The plain grid's walk arrays (`pack::grid::Walk`, docs/architecture.md,
+/// "The CPU's own arrays") hold what the walk would otherwise read from
+/// the primitives' records: per reference the test-once rule for each way
+/// into its cell, recomputed here from the primitive's cell range and the
+/// cell, and per grid primitive a sphere's first word. Only the plain grid
+/// has them.
+#[test]
+fn the_walk_arrays_hold_the_test_once_rule_and_the_spheres() {
+    for (seed, kinds) in [(1, None), (2, Some(true)), (3, Some(false)), (4, None)] {
+        let s = scene_of_kinds(seed, 250, seed == 4, kinds);
+        let p = pack_with(&s, Accel::Grid);
+        assert_eq!(p.walk.bits.len(), p.refs.len());
+        assert!(!SceneView::new(&p).walk_bits.is_empty());
+        let d = p.globals.grid_dims;
+        let cells = (d[0] * d[1] * d[2]) as usize;
+        let (mut below, mut above) = (0, 0);
+        for c in 0..cells {
+            let at = [
+                c as u32 % d[0],
+                c as u32 / d[0] % d[1],
+                c as u32 / (d[0] * d[1]),
+            ];
+            for k in p.cell_start[c] as usize..p.cell_start[c + 1] as usize {
+                let prim = &p.prims[p.refs[k] as usize];
+                let lo = whitted::pack::layout::cell_unpack(prim.cell_lo);
+                let hi = whitted::pack::layout::cell_unpack(prim.cell_hi);
+                let mut want = 0u8;
+                for a in 0..3 {
+                    assert!(
+                        lo[a] <= at[a] && at[a] <= hi[a],
+                        "cell {c} lists {k} out of range"
+                    );
+                    want |= ((at[a] > lo[a]) as u8) << (2 * a);
+                    want |= ((at[a] < hi[a]) as u8) << (2 * a + 1);
+                }
+                assert_eq!(
+                    p.walk.bits[k], want,
+                    "seed {seed}: reference {k} in cell {at:?}"
+                );
+                below += (want & 0b01_0101 != 0) as u32;
+                above += (want & 0b10_1010 != 0) as u32;
+            }
+        }
+        // Primitives span cells: the rule is not all zeros.
+        assert!(below > 0 && above > 0, "seed {seed}: {below} {above}");
+        let grid_prims = p.globals.counts[0] as usize;
+        if kinds == Some(false) {
+            assert!(p.walk.spheres.is_empty());
+        } else {
+            assert_eq!(p.walk.spheres.len(), grid_prims);
+            for (i, (w, prim)) in p.walk.spheres.iter().zip(&p.prims[..]).enumerate() {
+                if prim.kind() == whitted::constants::KIND_SPHERE {
+                    assert_eq!(*w, prim.a, "sphere {i}");
+                } else {
+                    assert_eq!(*w, [0.0, 0.0, 0.0, -1.0], "{i} is no sphere");
+                }
+            }
+        }
+    }
+    let s = random_scene(5, 200, true);
+    for accel in [Accel::Bvh, Accel::Octree, Accel::Hybrid] {
+        let p = pack_with(&s, accel);
+        assert!(
+            p.walk.bits.is_empty() && p.walk.spheres.is_empty(),
+            "{accel:?}"
+        );
+        assert!(SceneView::new(&p).walk_bits.is_empty(), "{accel:?}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// The grid's walk with its own arrays and without them (reading the
+    /// primitives' records) finds the same hit of the same primitive and
+    /// the same transmittance, with the same work counters and the same
+    /// shadow cache: the same tests in the same order. Scenes of every
+    /// kind, of spheres only and of no spheres.
+    #[test]
+    fn the_grid_walks_the_same_with_and_without_its_arrays(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        kinds in prop::option::of(any::<bool>()),
+        rays in ray_strategy(),
+    ) {
+        let s = scene_of_kinds(seed, count, clustered, kinds);
+        let p = pack_with(&s, Accel::Grid);
+        let with = SceneView::new(&p);
+        prop_assert!(!with.walk_bits.is_empty());
+        let without = SceneView::new(&p).without_walk_arrays();
+        let (mut wa, mut wb) = (Work::default(), Work::default());
+        for spec in &rays {
+            let Some((ray, pre)) = ray_of(spec) else {
+                continue;
+            };
+            let a = closest_hit(&with, &ray, &pre, f32::INFINITY, &mut wa);
+            let b = closest_hit(&without, &ray, &pre, f32::INFINITY, &mut wb);
+            prop_assert_eq!(a.map(|h| (h.0.t, h.1)), b.map(|h| (h.0.t, h.1)));
+            prop_assert_eq!(wa, wb);
+            for light in [0, usize::MAX] {
+                let ta = transmittance(&with, &ray, &pre, spec.2, light, &mut wa);
+                let tb = transmittance(&without, &ray, &pre, spec.2, light, &mut wb);
+                prop_assert_eq!(ta, tb);
+                prop_assert_eq!(wa, wb);
+            }
+        }
+    }
+
+    /// A whole render with the walk arrays and without them (the packed
+    /// scene's cleared): the same image bit for bit and the same counts.
+    #[test]
+    fn the_grid_renders_the_same_with_and_without_its_arrays(
+        seed in 0u64..1000,
+        count in 1usize..400,
+        clustered: bool,
+        kinds in prop::option::of(any::<bool>()),
+    ) {
+        let s = scene_of_kinds(seed, count, clustered, kinds);
+        let p = pack_with(&s, Accel::Grid);
+        let mut bare = p.clone();
+        bare.walk = Default::default();
+        prop_assert!(SceneView::new(&bare).walk_bits.is_empty());
+        let a = whitted::cpu::render(&p, &|_, _| {});
+        let b = whitted::cpu::render(&bare, &|_, _| {});
+        prop_assert_eq!(a.stats, b.stats);
+        prop_assert_eq!((a.work.tests, a.work.cells), (b.work.tests, b.work.cells));
+        prop_assert!(a.pixels == b.pixels, "the images differ");
+    }
+}

@@ -12,9 +12,9 @@
 //! already tested there and is skipped.
 
 use super::bvh::bvh_walk;
-use super::intersect::RayPre;
-use super::math::{Ray, Real};
-use super::query::{query_prim, Query, Work};
+use super::intersect::{sphere, RayPre};
+use super::math::{Ray, Real, V3};
+use super::query::{query_hit, query_prim, Query, Work};
 use super::SceneView;
 use crate::constants::{ACCEL_HYBRID, HYBRID_NODE};
 use crate::pack::layout::Prim;
@@ -319,29 +319,89 @@ pub fn grid_traverse<F: Real>(
             continue;
         }
         let (t_exit, axis) = dda_exit(&dda);
-        for &r in &s.refs[start..end] {
-            if r & HYBRID_NODE != 0 && s.globals.flags[1] == ACCEL_HYBRID {
-                // A crowded cell's own BVH (`pack::hybrid`), its leaves'
-                // primitives skipped as the list's would be.
-                let seen = |e: u32| {
-                    let i = s.refs[e as usize];
-                    (!seen_before(&s.prims[i as usize], &dda)).then_some(i)
-                };
-                if bvh_walk(s, ray, pre, q, work, r & !HYBRID_NODE, seen) {
+        if !s.walk_bits.is_empty() {
+            // The plain grid with its walk arrays (`pack::grid::Walk`): the
+            // same tests in the same order as the loop below, without
+            // reading a record to skip a primitive or to test a sphere.
+            if walk_cell(s, q, ray, pre, work, &dda, start, end) {
+                return;
+            }
+        } else {
+            for &r in &s.refs[start..end] {
+                if r & HYBRID_NODE != 0 && s.globals.flags[1] == ACCEL_HYBRID {
+                    // A crowded cell's own BVH (`pack::hybrid`), its leaves'
+                    // primitives skipped as the list's would be.
+                    let seen = |e: u32| {
+                        let i = s.refs[e as usize];
+                        (!seen_before(&s.prims[i as usize], &dda)).then_some(i)
+                    };
+                    if bvh_walk(s, ray, pre, q, work, r & !HYBRID_NODE, seen) {
+                        return;
+                    }
+                    continue;
+                }
+                let prim = &s.prims[r as usize];
+                if seen_before(prim, &dda) {
+                    continue;
+                }
+                if query_prim(s, q, prim, r, ray, pre, work) {
                     return;
                 }
-                continue;
-            }
-            let prim = &s.prims[r as usize];
-            if seen_before(prim, &dda) {
-                continue;
-            }
-            if query_prim(s, q, prim, r, ray, pre, work) {
-                return;
             }
         }
         if q.t <= t_exit || t_exit >= dda.t_end || !dda_advance(s, &mut dda, axis) {
             return;
         }
     }
+}
+
+/// One cell's references `start..end` for query `q`, through the walk
+/// arrays (`SceneView::walk_bits`, `SceneView::spheres`): a reference
+/// whose bit for the way the walk came in is set was tested in the
+/// previous cell (`seen_before`, from the primitive's cell range); a
+/// sphere is tested from its 16-byte record, its 64-byte one read only
+/// for a hit; any other kind as `query_prim` tests it. True when the
+/// query is done. The shader has no such arrays: the same tests in the
+/// same order (docs/architecture.md, "The CPU's own arrays").
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn walk_cell<F: Real>(
+    s: &SceneView,
+    q: &mut Query<F>,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    work: &mut Work,
+    dda: &Dda<F>,
+    start: usize,
+    end: usize,
+) -> bool {
+    let came_by: u8 = if dda.prev_axis > 2 {
+        0
+    } else {
+        1 << (2 * dda.prev_axis + (dda.step[dda.prev_axis] < 0) as usize)
+    };
+    let spheres = !s.spheres.is_empty();
+    for (&r, &b) in s.refs[start..end].iter().zip(&s.walk_bits[start..end]) {
+        if b & came_by != 0 {
+            continue;
+        }
+        if spheres {
+            let c = s.spheres[r as usize];
+            if c[3] >= 0.0 {
+                work.tests += 1;
+                if let Some(h) = sphere(V3::of(&c), F::of(c[3]), ray, q.bound) {
+                    if query_hit(s, q, &s.prims[r as usize], r, h, work) {
+                        return true;
+                    }
+                } else if q.done {
+                    return true;
+                }
+                continue;
+            }
+        }
+        if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
+            return true;
+        }
+    }
+    false
 }

@@ -30,10 +30,22 @@ pub struct SceneView<'a> {
     pub bvh: &'a [BvhNode],
     pub lb_start: &'a [u32],
     pub lb_refs: &'a [u32],
+    /// The CPU grid walk's test-once bits and sphere records
+    /// (`pack::grid::Walk`): empty unless the structure is the plain grid
+    /// and they match the arrays above, when the walk reads the
+    /// primitives' records instead.
+    pub walk_bits: &'a [u8],
+    pub spheres: &'a [[f32; 4]],
 }
 
 impl<'a> SceneView<'a> {
     pub fn new(p: &'a Packed) -> Self {
+        let g = &p.globals;
+        let walk = g.flags[1] == crate::constants::ACCEL_GRID
+            && !p.walk.bits.is_empty()
+            && p.walk.bits.len() == p.refs.len()
+            && (p.walk.spheres.is_empty() || p.walk.spheres.len() == g.counts[0] as usize)
+            && g.counts[0] as usize <= p.prims.len();
         SceneView {
             globals: &p.globals,
             prims: &p.prims,
@@ -45,6 +57,18 @@ impl<'a> SceneView<'a> {
             bvh: &p.bvh,
             lb_start: &p.lb_start,
             lb_refs: &p.lb_refs,
+            walk_bits: if walk { &p.walk.bits } else { &[] },
+            spheres: if walk { &p.walk.spheres } else { &[] },
+        }
+    }
+
+    /// The same view without the grid walk's own arrays: the walk reads
+    /// the primitives' records (tests compare the two).
+    pub fn without_walk_arrays(self) -> Self {
+        SceneView {
+            walk_bits: &[],
+            spheres: &[],
+            ..self
         }
     }
 
