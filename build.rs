@@ -88,6 +88,7 @@ fn const_f32(name: &str) -> f32 {
         "EPS_OFFSET_REL" => EPS_OFFSET_REL,
         "GRID_DENSITY" => GRID_DENSITY,
         "BVH_EXIT_WIDEN" => BVH_EXIT_WIDEN,
+        "CACHE_HIT_MARGIN" => CACHE_HIT_MARGIN,
         n => panic!("build.rs: add {n} to const_f32"),
     }
 }

@@ -70,6 +70,30 @@ bool cache_admits(uint i, uint leaf, Ray ray, RayPre pre, float dist) {
            (!nested || bvh_leaf_admits(leaf, ray, pre, dist));
 }
 
+// Whether the shadow cache may answer with its blocker's hit at t: under
+// the grid and the hybrid only inside the cells that list it by
+// CACHE_HIT_MARGIN of a cell on every axis. Twin of
+// trace::accel::cache_hit_listed.
+bool cache_hit_listed(uint i, Ray ray, float t) {
+    if ((i >= g.counts.x && i < g.counts.y) ||
+        !(uses_accel(ACCEL_GRID) || uses_accel(ACCEL_HYBRID))) {
+        return true;
+    }
+    Prim prim = load_prim(i);
+    bool inside = true;
+    for (int a = 0; a < 3; a++) {
+        uint shift = 10u * uint(a);
+        int lo = int((prim.cell_lo >> shift) & 1023u);
+        int hi = int((prim.cell_hi >> shift) & 1023u);
+        float m = g.grid_cell[a] * CACHE_HIT_MARGIN;
+        PRECISE float p = ray.o[a] + ray.d[a] * t;
+        PRECISE float below = lattice_plane(a, lo) + m;
+        PRECISE float above = lattice_plane(a, hi + 1) - m;
+        inside = inside && p >= below && p <= above;
+    }
+    return inside;
+}
+
 // Light reaching the end of a shadow feeler of length dist: every primitive
 // crossing it multiplies by its k_t (opaque ones give zero). Shadow feelers
 // are not refracted. `light` is the light the feeler goes to (>= the light
@@ -84,7 +108,8 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
         cache_admits(cached - 1u, shadow_leaf[shadow_slot(light)], ray, pre, dist)) {
         work_tests += 1u;
         Hit hc;
-        if (intersect(load_prim(cached - 1u), ray, pre, dist, hc)) {
+        if (intersect(load_prim(cached - 1u), ray, pre, dist, hc) &&
+            cache_hit_listed(cached - 1u, ray, hc.t)) {
             return vec3(0.0);
         }
     }

@@ -46,6 +46,12 @@ pub const BVH_COUNT_SHIFT: u32 = 28;
 /// rounds the box's size off (a feeler from a giant sphere 7·10¹⁰ away
 /// crossing a 10-unit polygon missed it before; docs/method.md).
 pub const BVH_EXIT_WIDEN: f32 = 1.000_000_5;
+/// The shadow cache answers for a grid's or a hybrid's blocker only when
+/// the cached test's hit lies inside the cells that list it by this
+/// share of a cell on every axis (`trace::accel::cache_hit_listed`), so
+/// that the walk, whose f32 steps err by far less, would have tested it
+/// there too.
+pub const CACHE_HIT_MARGIN: f32 = 0.015_625;
 /// Acceleration structures (`Globals::flags.y`): which one the tracers walk.
 pub const ACCEL_GRID: u32 = 0;
 pub const ACCEL_BVH: u32 = 1;

@@ -1188,6 +1188,42 @@ fn a_cached_blocker_for_a_feeler_from_a_giant_on_the_gpu() {
     }
 }
 
+/// The `pack` target's long cone (2026-12-07): a cylinder 10^6 times as
+/// long as wide under a 6³ grid, and a feeler some 70 units from its axis
+/// for which the f32 cone test reports a hit in cells that do not list
+/// it. With the shadow cache on, the grid and the hybrid answer only for
+/// a cached hit inside the blocker's cells (accel.glsl, cache_hit_listed):
+/// on both kernels the image and ray counts of the cache off, and the CPU
+/// mirror's bit for bit on lavapipe.
+#[test]
+fn a_cached_long_cone_hit_outside_its_cells_on_the_gpu() {
+    use whitted::gpu::GpuKernel;
+    if common::gpu().is_none() {
+        return;
+    }
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz_regressions/pack/shadow-cache-long-cone-grid.bin");
+    let data = std::fs::read(&path).expect("the finding is committed");
+    let (scene, settings) = whitted::fuzzing::pack_case(&data).expect("a scene");
+    for accel in [Accel::Grid, Accel::Hybrid] {
+        for (w, h) in [(7, 7), (32, 32)] {
+            let p = whitted::pack::pack(
+                &scene,
+                &Settings {
+                    accel,
+                    width: Some(w),
+                    height: Some(h),
+                    ..settings.clone()
+                },
+            )
+            .expect("packs");
+            for kernel in [GpuKernel::Mega, GpuKernel::Wavefront] {
+                the_cache_changes_nothing(&p, kernel, &format!("{accel:?} {w}x{h} {kernel:?}"));
+            }
+        }
+    }
+}
+
 /// With the shadow cache off in the packed scene (`Packed::set_shadow_cache`,
 /// `FLAG_NO_SHADOW_CACHE`), which turns it off on both backends whatever
 /// `--shadow-cache` says, the twins count the same work: on lavapipe the

@@ -6,7 +6,7 @@
 //! both queries (`query.rs`).
 
 use super::bvh::{bvh_leaf_admits, bvh_traverse};
-use super::grid::{clip_to_box, grid_traverse};
+use super::grid::{clip_to_box, grid_traverse, lattice_plane};
 use super::intersect::{intersect, Hit, RayPre};
 use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
@@ -14,7 +14,8 @@ use super::octree::{octree_traverse, octree_traverse_stack};
 use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
 use crate::constants::{
-    ACCEL_BVH, ACCEL_HYBRID, ACCEL_OCTREE, OCTREE_WALK_STACK, SHADOW_CACHE_LIGHTS,
+    ACCEL_BVH, ACCEL_GRID, ACCEL_HYBRID, ACCEL_OCTREE, CACHE_HIT_MARGIN, OCTREE_WALK_STACK,
+    SHADOW_CACHE_LIGHTS,
 };
 
 /// Runs query `q`: the unbounded primitives, then the structure in use.
@@ -78,8 +79,10 @@ pub fn transmittance<F: Real>(
     };
     if cached != 0 && cache_admits(s, cached - 1, *work.cached_leaf(light), ray, pre, dist) {
         work.tests += 1;
-        if intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist).is_some() {
-            return V3::zero();
+        if let Some(h) = intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist) {
+            if cache_hit_listed(s, cached - 1, ray, h.t) {
+                return V3::zero();
+            }
         }
     }
     let mut q = Query::shadow(dist, light);
@@ -153,6 +156,38 @@ pub fn cache_admits<F: Real>(
     near && g.grid_min[3] != 0.0
         && clip_to_box(s, &o, &d, &inv, dist).is_some()
         && (!nested || bvh_leaf_admits(s, leaf, ray, pre, dist))
+}
+
+/// Whether the shadow cache may answer with its blocker's hit at `t`
+/// (primitive `i`, which `cache_admits` admitted): under the grid and the
+/// hybrid, only when the hit lies inside the cells that list the blocker
+/// by `CACHE_HIT_MARGIN` of a cell on every axis, where the walk, which
+/// steps through every cell the feeler crosses, would test it too. The
+/// f32 test of a long cone can report a hit far outside the cone (the
+/// `pack` fuzz target: a cylinder 10^6 times as long as wide, whose test
+/// reported a hit 70 units off its axis, in cells the walk visited and
+/// that do not list it). Unbounded primitives, the BVH (`bvh_leaf_admits`)
+/// and the octree answer as before. Twin: `cache_hit_listed` in
+/// accel.glsl.
+#[inline(always)]
+pub fn cache_hit_listed<F: Real>(s: &SceneView, i: u32, ray: &Ray<F>, t: F) -> bool {
+    let g = s.globals;
+    if (g.counts[0]..g.counts[1]).contains(&i)
+        || !(g.flags[1] == ACCEL_GRID || g.flags[1] == ACCEL_HYBRID)
+    {
+        return true;
+    }
+    let prim = &s.prims[i as usize];
+    let o = [ray.o.x, ray.o.y, ray.o.z];
+    let d = [ray.d.x, ray.d.y, ray.d.z];
+    (0..3).all(|a| {
+        let shift = 10 * a as u32;
+        let lo = ((prim.cell_lo >> shift) & 1023) as i32;
+        let hi = ((prim.cell_hi >> shift) & 1023) as i32;
+        let m = F::of(g.grid_cell[a] * CACHE_HIT_MARGIN);
+        let p = o[a] + d[a] * t;
+        p >= lattice_plane::<F>(s, a, lo) + m && p <= lattice_plane::<F>(s, a, hi + 1) - m
+    })
 }
 
 /// Brute force over every primitive, no structure: the reference the
