@@ -17,6 +17,7 @@ use crate::constants::{
     ACCEL_BVH, ACCEL_GRID, ACCEL_HYBRID, ACCEL_OCTREE, CACHE_HIT_MARGIN, OCTREE_WALK_STACK,
     SHADOW_CACHE_LIGHTS,
 };
+use crate::pack::layout::cell_unpack;
 
 /// Runs query `q`: the unbounded primitives, then the structure in use.
 #[inline(always)]
@@ -178,15 +179,14 @@ pub fn cache_hit_listed<F: Real>(s: &SceneView, i: u32, ray: &Ray<F>, t: F) -> b
         return true;
     }
     let prim = &s.prims[i as usize];
+    let (lo, hi) = (cell_unpack(prim.cell_lo), cell_unpack(prim.cell_hi));
     let o = [ray.o.x, ray.o.y, ray.o.z];
     let d = [ray.d.x, ray.d.y, ray.d.z];
     (0..3).all(|a| {
-        let shift = 10 * a as u32;
-        let lo = ((prim.cell_lo >> shift) & 1023) as i32;
-        let hi = ((prim.cell_hi >> shift) & 1023) as i32;
         let m = F::of(g.grid_cell[a] * CACHE_HIT_MARGIN);
         let p = o[a] + d[a] * t;
-        p >= lattice_plane::<F>(s, a, lo) + m && p <= lattice_plane::<F>(s, a, hi + 1) - m
+        p >= lattice_plane::<F>(s, a, lo[a] as i32) + m
+            && p <= lattice_plane::<F>(s, a, hi[a] as i32 + 1) - m
     })
 }
 

@@ -12,9 +12,9 @@
 //! already tested there and is skipped.
 
 use super::bvh::bvh_walk;
-use super::intersect::{sphere, RayPre};
-use super::math::{Ray, Real, V3};
-use super::query::{query_hit, query_prim, Query, Work};
+use super::intersect::RayPre;
+use super::math::{Ray, Real};
+use super::query::{query_indexed, query_prim, Query, Work};
 use super::SceneView;
 use crate::constants::{ACCEL_HYBRID, HYBRID_NODE};
 use crate::pack::layout::Prim;
@@ -358,10 +358,9 @@ pub fn grid_traverse<F: Real>(
 /// One cell's references `start..end` for query `q`, through the walk
 /// arrays (`SceneView::walk_bits`, `SceneView::spheres`): a reference
 /// whose bit for the way the walk came in is set was tested in the
-/// previous cell (`seen_before`, from the primitive's cell range); a
-/// sphere is tested from its 16-byte record, its 64-byte one read only
-/// for a hit; any other kind as `query_prim` tests it. True when the
-/// query is done. The shader has no such arrays: the same tests in the
+/// previous cell (`seen_before`, from the primitive's cell range); the
+/// others go to `query_indexed` (a sphere tested from its 16-byte
+/// record). True when the query is done. The shader has no such arrays: the same tests in the
 /// same order (docs/architecture.md, "The CPU's own arrays").
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
@@ -380,26 +379,11 @@ fn walk_cell<F: Real>(
     } else {
         1 << (2 * dda.prev_axis + (dda.step[dda.prev_axis] < 0) as usize)
     };
-    let spheres = !s.spheres.is_empty();
     for (&r, &b) in s.refs[start..end].iter().zip(&s.walk_bits[start..end]) {
         if b & came_by != 0 {
             continue;
         }
-        if spheres {
-            let c = s.spheres[r as usize];
-            if c[3] >= 0.0 {
-                work.tests += 1;
-                if let Some(h) = sphere(V3::of(&c), F::of(c[3]), ray, q.bound) {
-                    if query_hit(s, q, &s.prims[r as usize], r, h, work) {
-                        return true;
-                    }
-                } else if q.done {
-                    return true;
-                }
-                continue;
-            }
-        }
-        if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
+        if query_indexed(s, q, r, ray, pre, work) {
             return true;
         }
     }

@@ -9,7 +9,7 @@
 //! it is the feeler's length and stays, and the walk stops once an opaque
 //! blocker has made the light zero (`Query::done`).
 
-use super::intersect::{intersect, Hit, RayPre};
+use super::intersect::{intersect, sphere, Hit, RayPre};
 use super::math::{Ray, Real, V3};
 use super::SceneView;
 use crate::constants::{ACCEL_BVH, SHADOW_CACHE_LEVELS, SHADOW_CACHE_LIGHTS};
@@ -236,6 +236,33 @@ pub fn query_prim<F: Real>(
         Some(h) => query_hit(s, q, prim, i, h, work),
         None => q.done,
     }
+}
+
+/// `query_prim` for primitive `i` of the structure (one of the first
+/// `globals.counts.x`), a sphere tested from its 16-byte record when the
+/// view has the sphere records (`SceneView::spheres`,
+/// `pack::grid::Walk`): the 64-byte record is read only for a hit or for
+/// another kind. The same test, answer and counters (docs/architecture.md,
+/// "The CPU's own arrays").
+#[inline(always)]
+pub fn query_indexed<F: Real>(
+    s: &SceneView,
+    q: &mut Query<F>,
+    i: u32,
+    ray: &Ray<F>,
+    pre: &RayPre<F>,
+    work: &mut Work,
+) -> bool {
+    if let Some(c) = s.spheres.get(i as usize) {
+        if c[3] >= 0.0 {
+            work.tests += 1;
+            return match sphere(V3::of(c), F::of(c[3]), ray, q.bound) {
+                Some(h) => query_hit(s, q, &s.prims[i as usize], i, h, work),
+                None => q.done,
+            };
+        }
+    }
+    query_prim(s, q, &s.prims[i as usize], i, ray, pre, work)
 }
 
 /// What query `q` makes of hit `h` of `prim` (primitive `i`) below its
