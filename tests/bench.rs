@@ -288,3 +288,45 @@ fn two_engines_rays(extra: &[&str], a: &str, b: &str) -> (u64, u64, String) {
     assert!(x > 0 && y > 0, "{text}");
     (x, y, text)
 }
+
+/// The SPD cases time the image: the rays `render --preset spd
+/// --counting traced` traces, not the zero-weight rays the SPD's own
+/// counting adds on gears (whose glass does not reflect), which change
+/// no pixel and which POV-Ray does not trace.
+#[test]
+fn bench_times_the_spd_image_without_the_spd_counting() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("g.csv");
+    let (text, header, rows) = small_spd_bench(&["--only", "gears"], &csv);
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    assert_eq!(rows.len(), 1, "{text}");
+    let benched: u64 = rows[0][col("rays")].parse().unwrap();
+    let scene = d.path().join("gears.nff");
+    whitted()
+        .args(["-q", "generate", "gears", "--size", "1", "-o"])
+        .arg(&scene)
+        .assert()
+        .success();
+    let rays = |counting: &str| {
+        let stats = d.path().join(format!("{counting}.json"));
+        whitted()
+            .args(["-q", "render", "--backend", "cpu", "--preset", "spd"])
+            .args(["--counting", counting, "--width", "32", "--height", "32"])
+            .arg(&scene)
+            .arg("-o")
+            .arg(d.path().join(format!("{counting}.png")))
+            .arg("--stats")
+            .arg(&stats)
+            .assert()
+            .success();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        ["eye", "reflect", "refract", "shadow"]
+            .iter()
+            .map(|k| j["rays"][k].as_u64().unwrap())
+            .sum::<u64>()
+    };
+    let (traced, spd) = (rays("traced"), rays("spd"));
+    assert!(spd > traced, "SPD counting {spd}, traced {traced}");
+    assert_eq!(benched, traced, "{text}");
+}

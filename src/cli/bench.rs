@@ -16,7 +16,9 @@ use std::path::{Path, PathBuf};
 /// Which scenes the suite holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Suite {
-    /// The SPD's seven scenes (generated at --size) under --preset spd.
+    /// The SPD's seven scenes (generated at --size) under --preset spd,
+    /// counting the rays traced (--counting traced: the image's rays, not
+    /// the SPD's statistics).
     Spd,
     /// The example scenes in --scenes (default `scenes/`) at their own size.
     Examples,
@@ -111,6 +113,15 @@ pub struct BenchArgs {
     pub keep: Option<PathBuf>,
 }
 
+/// What an SPD case renders with: the SPD's procedure (`--preset spd`:
+/// 512², corner rays, depth 4, no cut-off) and the rays the image needs.
+/// The preset's own counting (`--counting spd`) also traces, for the SPD's
+/// statistics alone, zero-weight reflection rays where a surface lets
+/// light through and does not reflect; they change no pixel, POV-Ray traces
+/// none of them, and on gears they were a quarter of the wall time
+/// (docs/spd.md, "Timings"). A bench times the image.
+pub const SPD_ARGS: &[&str] = &["--preset", "spd", "--counting", "traced"];
+
 /// Writes `scene` as NFF into `dir` and returns its path.
 fn write_scene(dir: &Path, name: &str, scene: &Scene) -> Result<PathBuf> {
     let p = dir.join(format!("{}.nff", bench::slug(name)));
@@ -134,7 +145,7 @@ fn suite_cases(a: &BenchArgs, dir: &Path) -> Result<Vec<Case>> {
                     let size = a.size.unwrap_or(sc.default_size());
                     let name = format!("{}-{size}", sc.name());
                     let p = write_scene(dir, &name, &scene)?;
-                    cases.push(Case::new(&name, "spd", &p, &scene, &["--preset", "spd"]));
+                    cases.push(Case::new(&name, "spd", &p, &scene, SPD_ARGS));
                 }
             }
             Suite::Examples => {
