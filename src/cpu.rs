@@ -318,7 +318,13 @@ fn trace_packet<F: Real, const P: usize>(
     work.credit_eye(before);
     let mut out = [[0f32; 3]; P];
     for j in 0..n {
-        out[j] = trace_ray_from(s, rays[j], Some(hits[j]), stats, work).to_f32();
+        out[j] = match hits[j] {
+            // A missed eye ray's tree is the background alone (weight 1, no
+            // medium): what `trace_ray_from` would return, without the call
+            // (SPD tetra's eye rays miss four times in five).
+            None => V3::<F>::of(&g.background).to_f32(),
+            hit => trace_ray_from(s, rays[j], Some(hit), stats, work).to_f32(),
+        };
     }
     out
 }

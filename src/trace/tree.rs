@@ -77,22 +77,39 @@ pub fn trace_ray_from<F: Real>(
     let eps = F::of(g.params[1]);
     let background = V3::<F>::of(&g.background);
     let spd = s.spd_counting();
-    // The ray walked next: the eye ray, then the reflected one when there
-    // is one, kept out of the stack (pushed last, it would be popped
+    // The ray walked now (`e`): the eye ray, then the reflected one when
+    // there is one, kept out of the stack (pushed last, it would be popped
     // first), so that a tree without refraction never touches the stack.
     // The stack is not zeroed (`ArrayVec`): that cost every eye ray a
     // memset of 884 bytes and a stalled load after it (BENCHMARKS.md, "The
-    // ray tree's stack").
-    let mut next = Some(Entry {
+    // ray tree's stack"). `e` is a plain variable, overwritten in place:
+    // held as an `Option<Entry>` for the next ray, it went through memory
+    // in pieces and came back as one 32-byte load, which the store buffer
+    // cannot forward (the stall held 15 % of this function's samples on
+    // SPD tetra; BENCHMARKS.md, "The SPD suite times the image").
+    let mut e = Entry {
         o: ray.o,
         d: ray.d,
         w: V3::splat(F::one()),
         medium: V3::zero(),
         depth: 0,
-    });
+    };
     let mut stack = ArrayVec::<Entry<F>, { STACK_SIZE as usize }>::new();
     let mut color = V3::zero();
-    while let Some(e) = next.take().or_else(|| stack.pop()) {
+    loop {
+        // The ray walked after this one: its reflection when it has one,
+        // else the stack's top; none ends the tree.
+        macro_rules! next_or_end {
+            () => {
+                match stack.pop() {
+                    Some(x) => {
+                        e = x;
+                        continue;
+                    }
+                    None => break,
+                }
+            };
+        }
         let r = Ray { o: e.o, d: e.d };
         let found = first.take().unwrap_or_else(|| {
             let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
@@ -109,7 +126,7 @@ pub fn trace_ray_from<F: Real>(
             if e.medium.max_elem() <= F::zero() {
                 color += e.w.mul_elem(background);
             }
-            continue;
+            next_or_end!();
         };
         if e.depth == 0 {
             stats.eye_hit += 1;
@@ -134,7 +151,7 @@ pub fn trace_ray_from<F: Real>(
             color += w.mul_elem(local);
         }
         if e.depth >= max_depth {
-            continue;
+            next_or_end!();
         }
         let mut refl = V3::<F>::of(&mat.kr);
         let kt = V3::<F>::of(&mat.kt);
@@ -176,15 +193,17 @@ pub fn trace_ray_from<F: Real>(
             }
             if wr.max_elem() >= min_weight {
                 stats.reflect += 1;
-                next = Some(Entry {
+                e = Entry {
                     o: p + ngf * eps,
                     d,
                     w: wr,
                     medium: e.medium,
                     depth: e.depth + 1,
-                });
+                };
+                continue;
             }
         }
+        next_or_end!();
     }
     color
 }
