@@ -5,6 +5,8 @@
 
 use assert_cmd::Command;
 
+mod common;
+
 fn whitted() -> Command {
     Command::cargo_bin("whitted").unwrap()
 }
@@ -308,19 +310,24 @@ fn bench_times_the_spd_image_without_the_spd_counting() {
         .assert()
         .success();
     let rays = |counting: &str| {
-        let stats = d.path().join(format!("{counting}.json"));
-        whitted()
-            .args(["-q", "render", "--backend", "cpu", "--preset", "spd"])
-            .args(["--counting", counting, "--width", "32", "--height", "32"])
-            .arg(&scene)
-            .arg("-o")
-            .arg(d.path().join(format!("{counting}.png")))
-            .arg("--stats")
-            .arg(&stats)
-            .assert()
-            .success();
-        let j: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let j = common::render_stats(
+            d.path(),
+            &scene,
+            &[
+                "-q",
+                "render",
+                "--backend",
+                "cpu",
+                "--preset",
+                "spd",
+                "--counting",
+                counting,
+                "--width",
+                "32",
+                "--height",
+                "32",
+            ],
+        );
         ["eye", "reflect", "refract", "shadow"]
             .iter()
             .map(|k| j["rays"][k].as_u64().unwrap())

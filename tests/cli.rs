@@ -2,7 +2,10 @@
 //! (exit code 2, a message naming file:line:column, no output written).
 
 use assert_cmd::Command;
+use common::render_stats;
 use std::path::Path;
+
+mod common;
 
 fn whitted() -> Command {
     Command::cargo_bin("whitted").unwrap()
@@ -191,22 +194,6 @@ fn corner_sampling_renders() {
         &["render", "-q", "--sampling", "corners"],
     );
     assert_eq!(j["rays"]["eye"], 33 * 25);
-}
-
-/// Runs `whitted ARGS SCENE -o DIR/o.png --stats DIR/s.json`, expects
-/// success; the statistics.
-fn render_stats(dir: &Path, scene: &Path, args: &[&str]) -> serde_json::Value {
-    let stats = dir.join("s.json");
-    whitted()
-        .args(args)
-        .arg(scene)
-        .arg("-o")
-        .arg(dir.join("o.png"))
-        .arg("--stats")
-        .arg(&stats)
-        .assert()
-        .success();
-    serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap()
 }
 
 /// Renders `scene` with `flag bogus` to `dir/x.png`, expects exit code 2;

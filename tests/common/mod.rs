@@ -211,3 +211,20 @@ pub fn random_scene_frame(
         source: std::path::PathBuf::from("random"),
     }
 }
+
+/// Runs `whitted ARGS SCENE -o DIR/o.png --stats DIR/s.json`, expects
+/// success; the statistics.
+pub fn render_stats(dir: &Path, scene: &Path, args: &[&str]) -> serde_json::Value {
+    let stats = dir.join("s.json");
+    assert_cmd::Command::cargo_bin("whitted")
+        .unwrap()
+        .args(args)
+        .arg(scene)
+        .arg("-o")
+        .arg(dir.join("o.png"))
+        .arg("--stats")
+        .arg(&stats)
+        .assert()
+        .success();
+    serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap()
+}
