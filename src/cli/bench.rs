@@ -120,7 +120,7 @@ pub struct BenchArgs {
 /// light through and does not reflect; they change no pixel, POV-Ray traces
 /// none of them, and on gears they were a quarter of the wall time
 /// (docs/spd.md, "Timings"). A bench times the image.
-pub const SPD_ARGS: &[&str] = &["--preset", "spd", "--counting", "traced"];
+const SPD_ARGS: &[&str] = &["--preset", "spd", "--counting", "traced"];
 
 /// Writes `scene` as NFF into `dir` and returns its path.
 fn write_scene(dir: &Path, name: &str, scene: &Scene) -> Result<PathBuf> {

@@ -96,114 +96,109 @@ pub fn trace_ray_from<F: Real>(
     };
     let mut stack = ArrayVec::<Entry<F>, { STACK_SIZE as usize }>::new();
     let mut color = V3::zero();
-    loop {
-        // The ray walked after this one: its reflection when it has one,
-        // else the stack's top; none ends the tree.
-        macro_rules! next_or_end {
-            () => {
-                match stack.pop() {
-                    Some(x) => {
-                        e = x;
-                        continue;
-                    }
-                    None => break,
+    'tree: loop {
+        // This ray's part of the tree; it ends by walking its reflection
+        // next (`continue 'tree`) or by leaving the block, after which the
+        // stack's top is next and an empty stack ends the tree.
+        'ray: {
+            let r = Ray { o: e.o, d: e.d };
+            let found = first.take().unwrap_or_else(|| {
+                let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
+                let before = work.totals();
+                let found = closest_hit(s, &r, &pre, F::infinity(), work);
+                if e.depth == 0 {
+                    // An eye ray's work is its own (`Work::eye`).
+                    work.credit_eye(before);
                 }
+                found
+            });
+            let Some((h, pi)) = found else {
+                // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
+                if e.medium.max_elem() <= F::zero() {
+                    color += e.w.mul_elem(background);
+                }
+                break 'ray;
             };
-        }
-        let r = Ray { o: e.o, d: e.d };
-        let found = first.take().unwrap_or_else(|| {
-            let pre = RayPre::new(e.d, s.has(FEAT_TRIANGLE));
-            let before = work.totals();
-            let found = closest_hit(s, &r, &pre, F::infinity(), work);
             if e.depth == 0 {
-                // An eye ray's work is its own (`Work::eye`).
-                work.credit_eye(before);
+                stats.eye_hit += 1;
             }
-            found
-        });
-        let Some((h, pi)) = found else {
-            // Escaping inside an absorbing medium: exp(−σ·∞) = 0.
-            if e.medium.max_elem() <= F::zero() {
-                color += e.w.mul_elem(background);
+            let mut w = e.w;
+            if s.has(FEAT_ABSORB) && e.medium.max_elem() > F::zero() {
+                w = w.mul_elem((-e.medium * h.t).map(|x| x.exp_t()));
             }
-            next_or_end!();
-        };
-        if e.depth == 0 {
-            stats.eye_hit += 1;
-        }
-        let mut w = e.w;
-        if s.has(FEAT_ABSORB) && e.medium.max_elem() > F::zero() {
-            w = w.mul_elem((-e.medium * h.t).map(|x| x.exp_t()));
-        }
-        let prim = &s.prims[pi as usize];
-        let mat = &s.materials[prim.material() as usize];
-        let p = e.o + e.d * h.t;
-        let (ng, ns) = normals(prim, s.extra, p, &h);
-        let front = e.d.dot(ng) < F::zero();
-        let n = if front { ns } else { -ns };
-        let ngf = if front { ng } else { -ng };
-        // A ray of weight 0 (SPD counting) adds nothing: its feelers are
-        // counted, not traced, and its local intensity is not added.
-        let weighted = w.max_elem() > F::zero();
-        work.at_depth(e.depth);
-        let local = shade(s, mat, p, e.d, n, ngf, front, weighted, stats, work);
-        if weighted {
-            color += w.mul_elem(local);
-        }
-        if e.depth >= max_depth {
-            next_or_end!();
-        }
-        let mut refl = V3::<F>::of(&mat.kr);
-        let kt = V3::<F>::of(&mat.kt);
-        if s.has(FEAT_REFRACT) && kt.max_elem() > F::zero() {
-            let ior = F::of(mat.kr[3]);
-            let eta = if front { F::one() / ior } else { ior };
-            match refract_dir(e.d, n, eta) {
-                // Total internal reflection: the transmitted share reflects.
-                None => refl += kt,
-                Some(t) => {
-                    let mut wt = w.mul_elem(kt);
-                    let medium = if front {
-                        V3::of(&mat.absorb)
-                    } else {
-                        V3::zero()
-                    };
-                    if s.has(FEAT_ABSORB) && medium.max_elem() > F::zero() {
-                        wt = wt.mul_elem(offset_absorption(medium, eps, ngf.dot(t)));
-                    }
-                    if wt.max_elem() >= min_weight {
-                        stats.refract += 1;
-                        // At most one refracted ray per depth waits.
-                        stack.push(Entry {
-                            o: p - ngf * eps,
-                            d: t,
-                            w: wt,
-                            medium,
-                            depth: e.depth + 1,
-                        });
+            let prim = &s.prims[pi as usize];
+            let mat = &s.materials[prim.material() as usize];
+            let p = e.o + e.d * h.t;
+            let (ng, ns) = normals(prim, s.extra, p, &h);
+            let front = e.d.dot(ng) < F::zero();
+            let n = if front { ns } else { -ns };
+            let ngf = if front { ng } else { -ng };
+            // A ray of weight 0 (SPD counting) adds nothing: its feelers are
+            // counted, not traced, and its local intensity is not added.
+            let weighted = w.max_elem() > F::zero();
+            work.at_depth(e.depth);
+            let local = shade(s, mat, p, e.d, n, ngf, front, weighted, stats, work);
+            if weighted {
+                color += w.mul_elem(local);
+            }
+            if e.depth >= max_depth {
+                break 'ray;
+            }
+            let mut refl = V3::<F>::of(&mat.kr);
+            let kt = V3::<F>::of(&mat.kt);
+            if s.has(FEAT_REFRACT) && kt.max_elem() > F::zero() {
+                let ior = F::of(mat.kr[3]);
+                let eta = if front { F::one() / ior } else { ior };
+                match refract_dir(e.d, n, eta) {
+                    // Total internal reflection: the transmitted share reflects.
+                    None => refl += kt,
+                    Some(t) => {
+                        let mut wt = w.mul_elem(kt);
+                        let medium = if front {
+                            V3::of(&mat.absorb)
+                        } else {
+                            V3::zero()
+                        };
+                        if s.has(FEAT_ABSORB) && medium.max_elem() > F::zero() {
+                            wt = wt.mul_elem(offset_absorption(medium, eps, ngf.dot(t)));
+                        }
+                        if wt.max_elem() >= min_weight {
+                            stats.refract += 1;
+                            // At most one refracted ray per depth waits.
+                            stack.push(Entry {
+                                o: p - ngf * eps,
+                                d: t,
+                                w: wt,
+                                medium,
+                                depth: e.depth + 1,
+                            });
+                        }
                     }
                 }
             }
-        }
-        if refl.max_elem() > F::zero() || (spd && kt.max_elem() > F::zero()) {
-            let mut wr = w.mul_elem(refl);
-            let d = reflect_dir(e.d, n);
-            if s.has(FEAT_ABSORB) && e.medium.max_elem() > F::zero() {
-                wr = wr.mul_elem(offset_absorption(e.medium, eps, ngf.dot(d)));
+            if refl.max_elem() > F::zero() || (spd && kt.max_elem() > F::zero()) {
+                let mut wr = w.mul_elem(refl);
+                let d = reflect_dir(e.d, n);
+                if s.has(FEAT_ABSORB) && e.medium.max_elem() > F::zero() {
+                    wr = wr.mul_elem(offset_absorption(e.medium, eps, ngf.dot(d)));
+                }
+                if wr.max_elem() >= min_weight {
+                    stats.reflect += 1;
+                    e = Entry {
+                        o: p + ngf * eps,
+                        d,
+                        w: wr,
+                        medium: e.medium,
+                        depth: e.depth + 1,
+                    };
+                    continue 'tree;
+                }
             }
-            if wr.max_elem() >= min_weight {
-                stats.reflect += 1;
-                e = Entry {
-                    o: p + ngf * eps,
-                    d,
-                    w: wr,
-                    medium: e.medium,
-                    depth: e.depth + 1,
-                };
-                continue;
-            }
         }
-        next_or_end!();
+        match stack.pop() {
+            Some(x) => e = x,
+            None => break,
+        }
     }
     color
 }
