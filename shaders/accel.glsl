@@ -118,7 +118,7 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     uint cell = 0u;
     bool use_lb = false;
     if (uses_light_buffers() && res > 0u && light < g.counts.z) {
-        PRECISE vec3 c = ray.o - lights[light].pos.xyz;
+        PRECISE vec3 c = ray.o - light_at(light).pos.xyz;
         use_lb = lightbuf_cell(res, light, c, cell);
     }
     if (use_lb) {

@@ -155,13 +155,13 @@ bool triangle(vec3 v0, vec3 v1, vec3 v2, Ray ray, RayPre pre, float tmax, out Hi
 
 // Vertex j of a polygon, projected (pack::polygon): two to a vec4.
 vec2 polyVertex(uint base, uint j) {
-    vec4 e = extra[base + j / 2u];
+    vec4 e = extra_at(base + j / 2u);
     return (j % 2u) == 0u ? e.xy : e.zw;
 }
 
 // Float i of the stream that starts at extra[base].
 float floatAt(uint base, uint i) {
-    return extra[base + i / 4u][i % 4u];
+    return extra_at(base + i / 4u)[i % 4u];
 }
 
 // The code of the cell of a banded polygon that (px, py) falls in:
@@ -226,7 +226,7 @@ bool polygon(Prim prim, Ray ray, float tmax, out Hit h) {
         bool pos = false;
         bool neg = false;
         for (uint j = 0u; j < count; j += 2u) {
-            vec4 pair = extra[base + j / 2u];
+            vec4 pair = extra_at(base + j / 2u);
             for (uint k = 0u; k < 2u; k++) {
                 vec2 c = k == 0u ? pair.xy : pair.zw;
                 if (j + k < count) {
@@ -407,9 +407,9 @@ bool inside_box(vec3 p, vec3 lo, vec3 hi) {
 // General quadric A x² + B y² + C z² + D xy + E xz + F yz + G x + H y + I z + J,
 // coefficients in extra[data .. data + 3], clipped to the box in a/b when a.w = 1.
 bool quadric(Prim prim, Ray ray, float tmax, out Hit h) {
-    vec4 k0 = extra[prim.data];
-    vec4 k1 = extra[prim.data + 1u];
-    vec4 k2 = extra[prim.data + 2u];
+    vec4 k0 = extra_at(prim.data);
+    vec4 k1 = extra_at(prim.data + 1u);
+    vec4 k2 = extra_at(prim.data + 2u);
     float ca = k0.x, cb = k0.y, cc = k0.z, cd = k0.w;
     float ce = k1.x, cf = k1.y, cg = k1.z, ch = k1.w;
     float ci = k2.x, cj = k2.y;
@@ -582,9 +582,9 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
             if (HAS_SMOOTH && prim.data != NO_NORMALS) {
                 uint i = prim.data;
                 PRECISE float w = 1.0 - h.u - h.v;
-                PRECISE vec3 s = extra[i].xyz * h.u
-                    + extra[i + 1u].xyz * h.v
-                    + extra[i + 2u].xyz * w;
+                PRECISE vec3 s = extra_at(i).xyz * h.u
+                    + extra_at(i + 1u).xyz * h.v
+                    + extra_at(i + 2u).xyz * w;
                 ns = normalize3(s);
             }
         }
@@ -606,9 +606,9 @@ void normals(Prim prim, vec3 p, Hit h, out vec3 ng, out vec3 ns) {
         break;
     case KIND_QUADRIC:
         if (HAS_QUADRIC) {
-            vec4 k0 = extra[prim.data];
-            vec4 k1 = extra[prim.data + 1u];
-            vec4 k2 = extra[prim.data + 2u];
+            vec4 k0 = extra_at(prim.data);
+            vec4 k1 = extra_at(prim.data + 1u);
+            vec4 k2 = extra_at(prim.data + 2u);
             PRECISE float nx = 2.0 * k0.x * p.x + k0.w * p.y + k1.x * p.z + k1.z;
             PRECISE float ny = 2.0 * k0.y * p.y + k0.w * p.x + k1.y * p.z + k1.w;
             PRECISE float nz = 2.0 * k0.z * p.z + k1.x * p.x + k1.y * p.y + k2.x;

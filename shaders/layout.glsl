@@ -195,26 +195,32 @@ const bool CONVEX_POLYGONS = (STRUCTURE & 0x80200000u) == 0x00200000u;
 // almost never jump (docs/profiling.md). Never under STRUCTURE_ANY.
 const bool NO_JUMPS = (STRUCTURE & 0xA0000000u) == 0x20000000u;
 
-// Bit 11: the primitives, the BVH and the grid's (or octree's) cell and
-// reference lists are read through bindings 20 to 23: the buffers of
-// bindings 1, 11, 5 and 6 seen as uniform texel buffers (16-byte texels,
-// R32G32B32A32_UINT, for the primitives and the BVH; 4-byte ones, R32_UINT,
-// for the lists), instead of as storage buffers. The same values, bit for
-// bit. llvmpipe loads a storage-buffer word whose index differs between
-// lanes in a loop over the 8 lanes, word by word, each with its bounds
-// check; a texel fetch gathers a texel per lane without the loop. Measured
-// on lavapipe: 15-30 % less device time; the materials, lights, `extra`
-// and the light buffers' lists read as texels were slower than as storage
-// buffers and stay so (docs/profiling.md, "Texel reads"). The host sets
-// the bit unless `--reads storage` is given or one of the four arrays has
-// more texels than the device's maxTexelBufferElements (src/gpu/mod.rs,
-// GpuReads).
+// Bit 11: every array of the scene but the globals is read through a
+// uniform texel buffer view of its buffer (bindings 20 to 28): the
+// primitives, `extra`, the materials, the lights and the BVH as 16-byte
+// texels (R32G32B32A32_UINT), the grid's (or octree's) cell and reference
+// lists and the light buffers' as 4-byte ones (R32_UINT), instead of as
+// storage buffers. The same values, bit for bit. llvmpipe loads a
+// storage-buffer word whose index differs between lanes in a loop over
+// the 8 lanes, word by word, each with its bounds check (even where all
+// lanes read the same word, as a light's); a texel fetch gathers a texel
+// per lane without the loop. Measured on lavapipe: 15-30 % less device
+// time for the first four arrays, then 6-25 % more off for the materials
+// and lights, `extra`, and the light buffers' lists (docs/profiling.md,
+// "Texel reads"). The host sets the bit unless `--reads storage` is given
+// or one of the arrays has more texels than the device's
+// maxTexelBufferElements (src/gpu/mod.rs, GpuReads).
 const bool TEXELS = (STRUCTURE & 0x80000800u) == 2048u;
 
 layout(set = 0, binding = 20) uniform usamplerBuffer prim_texels;
 layout(set = 0, binding = 21) uniform usamplerBuffer cell_start_texels;
 layout(set = 0, binding = 22) uniform usamplerBuffer refs_texels;
 layout(set = 0, binding = 23) uniform usamplerBuffer bvh_texels;
+layout(set = 0, binding = 24) uniform usamplerBuffer material_texels;
+layout(set = 0, binding = 25) uniform usamplerBuffer light_texels;
+layout(set = 0, binding = 26) uniform usamplerBuffer extra_texels;
+layout(set = 0, binding = 27) uniform usamplerBuffer lb_start_texels;
+layout(set = 0, binding = 28) uniform usamplerBuffer lb_refs_texels;
 
 // Word i of each array, through the texel view or the storage buffer.
 uvec4 prim_word(uint i) {
@@ -236,6 +242,49 @@ uint ref_at(uint i) {
         return texelFetch(refs_texels, int(i)).x;
     }
     return refs[i];
+}
+
+vec4 extra_at(uint i) {
+    if (TEXELS) {
+        return uintBitsToFloat(texelFetch(extra_texels, int(i)));
+    }
+    return extra[i];
+}
+
+uint lb_start_at(uint i) {
+    if (TEXELS) {
+        return texelFetch(lb_start_texels, int(i)).x;
+    }
+    return lb_start[i];
+}
+
+uint lb_ref_at(uint i) {
+    if (TEXELS) {
+        return texelFetch(lb_refs_texels, int(i)).x;
+    }
+    return lb_refs[i];
+}
+
+// Material i and light i, through the texel view (6 and 3 texels each)
+// or the storage buffer: a light's words, the same for all 8 lanes, cost
+// llvmpipe the same per-lane loop as any other storage read.
+vec4 material_word(uint i, uint k) { return uintBitsToFloat(texelFetch(material_texels, int(6u * i + k))); }
+
+Material material_at(uint i) {
+    if (TEXELS) {
+        return Material(material_word(i, 0u), material_word(i, 1u), material_word(i, 2u),
+                        material_word(i, 3u), material_word(i, 4u), material_word(i, 5u));
+    }
+    return materials[i];
+}
+
+vec4 light_word(uint i, uint k) { return uintBitsToFloat(texelFetch(light_texels, int(3u * i + k))); }
+
+Light light_at(uint i) {
+    if (TEXELS) {
+        return Light(light_word(i, 0u), light_word(i, 1u), light_word(i, 2u));
+    }
+    return lights[i];
 }
 
 vec4 bvh_word(int k) { return uintBitsToFloat(texelFetch(bvh_texels, k)); }

@@ -69,11 +69,11 @@ void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell) {
         return;
     }
     work_cells += 1u;
-    uint start = lb_start[cell];
-    uint end = lb_start[cell + 1u];
+    uint start = lb_start_at(cell);
+    uint end = lb_start_at(cell + 1u);
     uint k = start;
     for (; k < end; k++) {
-        uint r = lb_refs[k];
+        uint r = lb_ref_at(k);
         if (query_prim(q, load_prim(r), r, ray, pre)) {
             break;
         }

@@ -143,7 +143,7 @@ bool query_prim_kinds(inout Query q, Prim prim, uint i, Ray ray, RayPre pre, uin
             // Without FEAT_REFRACT no material lets light through (every
             // k_t is 0): no read of the materials, a per-lane loop on
             // llvmpipe that every test ran, masked.
-            vec3 kt = HAS_REFRACT ? materials[prim_material(prim)].kt.xyz : vec3(0.0);
+            vec3 kt = HAS_REFRACT ? material_at(prim_material(prim)).kt.xyz : vec3(0.0);
             if (max_elem(kt) > 0.0 && !(h.t >= q.lo && h.t < q.hi)) {
                 return false;
             }

@@ -50,7 +50,7 @@ bool transmit_highlight(Material mat) {
 bool light_feeler(vec3 p, vec3 n, vec3 ngf, bool weighted, bool highlight_t, uint li_,
                   out vec3 o, out vec3 l, out float dist, out float ndotl) {
     float eps = g.params.y;
-    Light light = lights[li_];
+    Light light = light_at(li_);
     PRECISE vec3 lv = light.pos.xyz - p;
     PRECISE float dist_ = length3(lv);
     PRECISE vec3 l_ = lv / dist_;
@@ -123,7 +123,7 @@ vec3 light_add(vec3 c, uint li_, vec3 tr, float dist, vec3 term) {
     if (max_elem(tr) <= 0.0) {
         return c;
     }
-    Light light = lights[li_];
+    Light light = light_at(li_);
     PRECISE vec3 li = light.color.xyz * tr;
     if (HAS_FALLOFF && has(FEAT_FALLOFF)) {
         vec3 f = light.falloff.xyz;

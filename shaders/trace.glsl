@@ -64,7 +64,7 @@ Surface surface_at(Entry e, Hit h, uint pi) {
         w = w * vec3(exp_twin(x.x), exp_twin(x.y), exp_twin(x.z));
     }
     Prim prim = load_prim(pi);
-    Material mat = materials[prim_material(prim)];
+    Material mat = material_at(prim_material(prim));
     PRECISE vec3 p = e.o + e.d * h.t;
     vec3 ng;
     vec3 ns;

@@ -469,11 +469,12 @@ impl CellLayout {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum GpuReads {
-    /// The primitives, the BVH and the cell and reference lists through
-    /// uniform texel buffer views (bindings 20 to 23; the other arrays
-    /// as storage buffers): on lavapipe 15-30 % less device time. The
-    /// default; storage buffers where one of the four has more texels
-    /// than the device's maxTexelBufferElements.
+    /// Every array but the globals (the primitives, `extra`, the
+    /// materials, the lights, the cell and reference lists, the BVH, the
+    /// light buffers' lists) through uniform texel buffer views (bindings
+    /// 20 to 28): on lavapipe 25-45 % less device time. The default;
+    /// storage buffers where one of them has more texels than the
+    /// device's maxTexelBufferElements.
     #[default]
     Texel,
     /// Every array as a storage buffer (bindings 1 to 6, 11 to 13).
@@ -482,7 +483,7 @@ pub enum GpuReads {
 
 impl GpuReads {
     /// The reads to use on a device whose texel views hold at most
-    /// `max_texels` texels: storage buffers when one of `p`'s four arrays
+    /// `max_texels` texels: storage buffers when one of `p`'s arrays
     /// read as texels (`texel_binding`) has more, with the cells in
     /// layout `cells`.
     pub fn fitting(self, p: &crate::pack::Packed, cells: CellLayout, max_texels: u64) -> GpuReads {
@@ -491,6 +492,11 @@ impl GpuReads {
             cells.bytes(p) / 4,
             p.refs.len() as u64,
             std::mem::size_of_val(p.bvh.as_slice()) as u64 / 16,
+            std::mem::size_of_val(p.extra.as_slice()) as u64 / 16,
+            std::mem::size_of_val(p.materials.as_slice()) as u64 / 16,
+            std::mem::size_of_val(p.lights.as_slice()) as u64 / 16,
+            p.lb_start.len() as u64,
+            p.lb_refs.len() as u64,
         ];
         if self == GpuReads::Texel && texels.iter().any(|&t| t > max_texels) {
             GpuReads::Storage
@@ -920,9 +926,14 @@ struct SceneBuffers {
 fn texel_binding(b: u32) -> Option<(u32, vk::Format)> {
     Some(match b {
         1 => (20, vk::Format::R32G32B32A32_UINT),
+        2 => (26, vk::Format::R32G32B32A32_UINT),
+        3 => (24, vk::Format::R32G32B32A32_UINT),
+        4 => (25, vk::Format::R32G32B32A32_UINT),
         5 => (21, vk::Format::R32_UINT),
         6 => (22, vk::Format::R32_UINT),
         11 => (23, vk::Format::R32G32B32A32_UINT),
+        12 => (27, vk::Format::R32_UINT),
+        13 => (28, vk::Format::R32_UINT),
         _ => return None,
     })
 }
