@@ -92,6 +92,11 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
         return;
     }
     // The pushed children: node · BVH_WIDTH + lane, and entry distances.
+    // A feeler's distances are all 0 (it keeps none, as on the CPU), so
+    // its walk neither writes nor reads stack_t: q.shadow is a constant
+    // in each inlined copy, and llvmpipe's private array, written and
+    // read lane by lane at a varying index, is left out of the feelers'
+    // walks (docs/profiling.md, "Feelers without entry distances").
     uint stack_slot[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     uint sp = 0u;
@@ -177,17 +182,23 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                     uint base = link * BVH_WIDTH;
                     if (m > 3u) {
                         stack_slot[sp] = base + k3;
-                        stack_t[sp] = s3;
+                        if (!q.shadow) {
+                            stack_t[sp] = s3;
+                        }
                         sp += 1u;
                     }
                     if (m > 2u) {
                         stack_slot[sp] = base + k2;
-                        stack_t[sp] = s2;
+                        if (!q.shadow) {
+                            stack_t[sp] = s2;
+                        }
                         sp += 1u;
                     }
                     if (m > 1u) {
                         stack_slot[sp] = base + k1;
-                        stack_t[sp] = s1;
+                        if (!q.shadow) {
+                            stack_t[sp] = s1;
+                        }
                         sp += 1u;
                     }
                     work_stack = max(work_stack, sp);
@@ -208,7 +219,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
                 sp -= 1u;
                 slot = 1u + stack_slot[sp];
                 bvh_child(stack_slot[sp], link, count);
-                t = stack_t[sp];
+                t = q.shadow ? 0.0 : stack_t[sp];
             }
         }
         if (!found) {
@@ -244,7 +255,7 @@ void bvh_walk(Ray ray, RayPre pre, inout Query q, uint root, bool nested, int pr
         sp -= 1u;
         slot = 1u + stack_slot[sp];
         bvh_child(stack_slot[sp], link, count);
-        t = stack_t[sp];
+        t = q.shadow ? 0.0 : stack_t[sp];
     }
     if (!ended) {
         loops_cut += 1u;
