@@ -472,7 +472,9 @@ pub enum GpuReads {
     /// Every array but the globals (the primitives, `extra`, the
     /// materials, the lights, the cell and reference lists, the BVH, the
     /// light buffers' lists) through uniform texel buffer views (bindings
-    /// 20 to 28): on lavapipe 25-45 % less device time. The default;
+    /// 20 to 28): on lavapipe 15-30 % less device time for the first
+    /// four arrays read so, then 6-25 % less again for the others
+    /// (docs/profiling.md, "Every array as texels"). The default;
     /// storage buffers where one of them has more texels than the
     /// device's maxTexelBufferElements.
     #[default]
