@@ -107,8 +107,12 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
     vec3 sum = vec3(0.0);
     uint s = 0u;
     bool started = false;
+    // The ray walked next, when `have`; else the stack's top (trace.glsl,
+    // trace_ray: only refracted rays wait in the stack).
+    Entry e;
+    bool have = false;
     while (more) {
-        if (sp == 0u) {
+        if (!have && (!HAS_REFRACT || sp == 0u)) {
             if (started) {
                 // A sample's tree is done: render_pixel's sum, and the
                 // point's mean once all its samples are.
@@ -143,12 +147,15 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
                 vec2 xy = sample_pos(g, px, py, s);
                 d = eye_dir(g, xy.x, xy.y);
             }
-            stack[0] = Entry(vec3(0.0), d, vec3(1.0), vec3(0.0), 0u);
-            sp = 1u;
+            e = Entry(vec3(0.0), d, vec3(1.0), vec3(0.0), 0u);
+            have = true;
         }
         // trace_ray's loop body (trace.glsl), unchanged: keep the two alike.
-        sp -= 1u;
-        Entry e = stack[stack_slot(sp)];
+        if (HAS_REFRACT && !have) {
+            sp -= 1u;
+            e = stack[sp];
+        }
+        have = false;
         Ray r = Ray(e.o, e.d);
         RayPre pre = ray_pre(e.d);
         Hit h;
@@ -178,13 +185,13 @@ void render_lane(uvec2 base, bool corners, uint lw, uint lh) {
         Entry tr;
         Entry rf;
         uint kids = spawn(e, sf, tr, rf);
-        if ((kids & 1u) != 0u) {
-            stack[stack_slot(sp)] = tr;
+        if (HAS_REFRACT && (kids & 1u) != 0u) {
+            stack[sp] = tr;
             sp += 1u;
         }
         if ((kids & 2u) != 0u) {
-            stack[stack_slot(sp)] = rf;
-            sp += 1u;
+            e = rf;
+            have = true;
         }
     }
     if (more) {

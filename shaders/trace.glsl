@@ -150,21 +150,30 @@ vec3 add_weighted(vec3 a, vec3 w, vec3 b) {
 // render.comp's render_lane repeats this loop's body, between samples of
 // several points: a change here changes it there.)
 //
-// Without refraction (no FEAT_REFRACT) a hit spawns at most the reflected
-// ray, so the stack never holds more than one entry and every push and
-// pop is at slot 0 (stack_slot): constant indices, so the array becomes
-// plain registers. llvmpipe otherwise reads and writes a private array at
-// a varying index lane by lane, 13 words an entry.
-uint stack_slot(uint sp) { return HAS_REFRACT ? sp : 0u; }
-
+// The ray walked now, `e`, is a plain variable: a hit's reflected ray
+// becomes the next `e` at once, and only refracted rays wait in the
+// stack, to be popped when a branch ends (the order of pushing the
+// refracted ray and then the reflected one and popping the reflected
+// first, as the CPU twin walks it). llvmpipe reads and writes a private
+// array at a varying index lane by lane, 13 words an entry, and runs
+// each access, masked, on every pass of the loop: before, every ray went
+// through the stack (a pop and two pushes a pass); now a pass has one pop
+// and one push, and a scene without refraction (no FEAT_REFRACT: nothing
+// is ever pushed) has no stack at all (docs/profiling.md, "The reflected
+// ray out of the stack").
 vec3 trace_ray(Ray ray) {
     Entry stack[STACK_SIZE];
-    stack[0] = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
-    uint sp = 1u;
+    uint sp = 0u;
+    Entry e = Entry(ray.o, ray.d, vec3(1.0), vec3(0.0), 0u);
+    // Whether `e` holds the next ray (else the stack's top, if any).
+    bool have = true;
     vec3 color = vec3(0.0);
-    while (sp > 0u) {
-        sp -= 1u;
-        Entry e = stack[stack_slot(sp)];
+    while (have || (HAS_REFRACT && sp > 0u)) {
+        if (HAS_REFRACT && !have) {
+            sp -= 1u;
+            e = stack[sp];
+        }
+        have = false;
         Ray r = Ray(e.o, e.d);
         RayPre pre = ray_pre(e.d);
         Hit h;
@@ -194,20 +203,18 @@ vec3 trace_ray(Ray ray) {
         Entry tr;
         Entry rf;
         uint kids = spawn(e, s, tr, rf);
-        // The refracted ray below the reflected one: reflection is walked
-        // first. (The CPU twin keeps the reflected ray out of its stack and
-        // walks it next: the same order; on lavapipe that was level,
-        // docs/profiling.md, on the CPU level to 10 % faster: BENCHMARKS.md.)
-        if ((kids & 1u) != 0u) {
-            stack[stack_slot(sp)] = tr;
+        // The refracted ray waits below what the reflected one spawns:
+        // reflection is walked first.
+        if (HAS_REFRACT && (kids & 1u) != 0u) {
+            stack[sp] = tr;
             sp += 1u;
         }
         if ((kids & 2u) != 0u) {
-            stack[stack_slot(sp)] = rf;
-            sp += 1u;
+            e = rf;
+            have = true;
         }
     }
-    if (sp > 0u) {
+    if (have || sp > 0u) {
         loops_cut += 1u;
     }
     return color;

@@ -3,10 +3,11 @@
 //! An explicit stack in a fixed order (the GPU has no recursion and must
 //! reproduce it): pop a ray, find its closest hit, add its weighted local
 //! intensity, then push the refracted ray and after it the reflected one
-//! (so reflection is walked first). Here the reflected ray is not pushed
-//! but walked next straight away, the same order (the shader pushes it:
-//! there that made no difference, here it saves a store and a stalled
-//! reload per ray). A ray's weight is the product of the
+//! (so reflection is walked first). The reflected ray is not pushed but
+//! walked next straight away, the same order, here and in the shader:
+//! here it saves a store and a stalled reload per ray, there llvmpipe's
+//! lane-by-lane copies of a 13-word entry (docs/profiling.md, "The
+//! reflected ray out of the stack"). A ray's weight is the product of the
 //! k_r/k_t along its path times its medium's Beer–Lambert attenuation, so
 //! I = I_L + k_r I_R + k_t I_T is summed in place. A branch ends at the
 //! depth limit or when its weight (largest channel) falls under min weight.
