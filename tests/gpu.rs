@@ -1361,6 +1361,97 @@ fn cell_layouts_do_not_change_the_image() {
     common::assert_no_validation_errors();
 }
 
+/// Only refracted rays wait in the kernels' ray-tree stack (a hit's
+/// reflected ray is walked next from registers, trace.glsl): overlapping
+/// glass spheres with both k_r and k_t, ten levels deep, keep several
+/// refracted rays waiting at once, popped in the CPU mirror's order. Both
+/// kernels (`--lane-pixels` 1 and 2, lavapipe's default) and both
+/// structures give the mirror's ray counts, and its image bit for bit on
+/// lavapipe.
+#[test]
+fn deep_refraction_trees_pop_in_the_mirrors_order() {
+    let Some(g) = common::gpu() else { return };
+    let exact = g.info().kind == DeviceKind::Cpu;
+    let scene = r#"
+background = [0.2, 0.3, 0.5]
+ambient = 0.2
+[camera]
+from = [0, -6, 1]
+at = [0, 0, 0]
+fov = 40
+[[light]]
+position = [-4, -5, 6]
+color = 0.8
+[material.glass]
+color = [1, 1, 1]
+kd = 0.1
+ks = 0.5
+shine = 50
+kr = 0.4
+kt = 0.6
+ior = 1.5
+absorption = [0.1, 0.05, 0.02]
+[material.floor]
+color = [0.8, 0.7, 0.6]
+kr = 0.3
+[[object]]
+type = "plane"
+point = [0, 0, -1]
+normal = [0, 0, 1]
+material = "floor"
+[[object]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1
+material = "glass"
+[[object]]
+type = "sphere"
+center = [0.6, -0.5, 0.3]
+radius = 0.6
+material = "glass"
+[[object]]
+type = "sphere"
+center = [-0.7, 0.4, -0.2]
+radius = 0.7
+material = "glass"
+"#;
+    for accel in [Accel::Bvh, Accel::Grid] {
+        let p = common::parse(
+            scene,
+            &Settings {
+                accel,
+                max_depth: 10,
+                min_weight: 0.002,
+                spp: 2,
+                ..common::small(40, 30)
+            },
+        );
+        let cpu = cpu::render(&p, &|_, _| {});
+        // Enough refracted rays that stacks of several entries occur.
+        assert!(cpu.stats.refract > 4 * 40 * 30, "{:?}", cpu.stats);
+        // 2, not 0 (the device's default): a default that cuts loops
+        // falls back to 1 and would hide the lanes kernel's answer.
+        for lane_pixels in [1, 2] {
+            let f = g
+                .render(
+                    &p,
+                    &GpuOptions {
+                        lane_pixels,
+                        ..Default::default()
+                    },
+                    &|_, _| {},
+                )
+                .unwrap();
+            let name = format!("{accel:?}, lane pixels {lane_pixels}");
+            assert_eq!(f.stats, cpu.stats, "{name}");
+            if exact {
+                assert!(bits(&f) == bits(&cpu), "{name}: against the CPU mirror");
+            }
+        }
+    }
+    common::assert_no_validation_errors();
+}
+
 /// `--lane-pixels K` (render_lanes.spv: K lattice points an invocation,
 /// each sample started inside one ray loop) gives the one-point kernel's
 /// image and ray counts on every scene file, with odd workgroup shapes and
