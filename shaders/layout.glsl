@@ -207,9 +207,9 @@ const bool NO_JUMPS = (STRUCTURE & 0xA0000000u) == 0x20000000u;
 // per lane without the loop. Measured on lavapipe: 15-30 % less device
 // time for the first four arrays, then 6-25 % more off for the materials
 // and lights, `extra`, and the light buffers' lists (docs/profiling.md,
-// "Texel reads"). The host sets the bit unless `--reads storage` is given
-// or one of the arrays has more texels than the device's
-// maxTexelBufferElements (src/gpu/mod.rs, GpuReads).
+// "Texel reads" and "Every array as texels"). The host sets the bit
+// unless `--reads storage` is given or one of the arrays has more texels
+// than the device's maxTexelBufferElements (src/gpu/mod.rs, GpuReads).
 const bool TEXELS = (STRUCTURE & 0x80000800u) == 2048u;
 
 layout(set = 0, binding = 20) uniform usamplerBuffer prim_texels;

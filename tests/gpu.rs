@@ -1366,12 +1366,11 @@ fn cell_layouts_do_not_change_the_image() {
 /// glass spheres with both k_r and k_t, ten levels deep, keep several
 /// refracted rays waiting at once, popped in the CPU mirror's order. Both
 /// kernels (`--lane-pixels` 1 and 2, lavapipe's default) and both
-/// structures give the mirror's ray counts, and its image bit for bit on
-/// lavapipe.
+/// structures give the mirror's ray counts, and its image within the
+/// device's tolerance (`assert_close`: bit for bit on lavapipe).
 #[test]
 fn deep_refraction_trees_pop_in_the_mirrors_order() {
     let Some(g) = common::gpu() else { return };
-    let exact = g.info().kind == DeviceKind::Cpu;
     let scene = r#"
 background = [0.2, 0.3, 0.5]
 ambient = 0.2
@@ -1442,11 +1441,9 @@ material = "glass"
                     &|_, _| {},
                 )
                 .unwrap();
-            let name = format!("{accel:?}, lane pixels {lane_pixels}");
+            let name = format!("deep refraction, {accel:?}, lane pixels {lane_pixels}");
             assert_eq!(f.stats, cpu.stats, "{name}");
-            if exact {
-                assert!(bits(&f) == bits(&cpu), "{name}: against the CPU mirror");
-            }
+            assert_close(&name, &cpu, &f);
         }
     }
     common::assert_no_validation_errors();
