@@ -116,13 +116,14 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
     Query q = query_shadow(dist, light);
     uint res = g.flags.w;
     uint cell = 0u;
+    float depth = 0.0;
     bool use_lb = false;
     if (uses_light_buffers() && res > 0u && light < g.counts.z) {
         PRECISE vec3 c = ray.o - light_at(light).pos.xyz;
-        use_lb = lightbuf_cell(res, light, c, cell);
+        use_lb = lightbuf_cell(res, light, c, cell, depth);
     }
     if (use_lb) {
-        lightbuf_traverse(ray, pre, q, cell);
+        lightbuf_traverse(ray, pre, q, cell, depth);
     } else {
         accel_traverse(ray, pre, q);
     }

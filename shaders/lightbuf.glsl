@@ -1,31 +1,42 @@
 // Shadow feelers through a light buffer: twin of src/trace/lightbuf.rs.
-// The cube of directions around each light (src/pack/lightbuf.rs): a
-// feeler tests the unbounded primitives, then the primitives its
-// direction's cell lists.
+// The cube of directions around each light (src/pack/lightbuf.rs), each
+// face's cells spread over its window: a feeler tests the unbounded
+// primitives, then the primitives its direction's cell lists, nearest the
+// light first, up to the depth of its own origin.
 #ifndef WHITTED_LIGHTBUF_GLSL
 #define WHITTED_LIGHTBUF_GLSL
 
 #include "precise.glsl"
 #include "query.glsl"
 
-// The index along a face's side of coordinate u (in [-1, 1]) at res
-// cells: floor((u + 1)·0.5·res), at most res - 1.
-uint lightbuf_index(float u, uint res) {
-    PRECISE float x = (u + 1.0) * 0.5 * float(res);
-    uint i = uint(max(int(x), 0));
-    return min(i, res - 1u);
+// No cell lists anything there: the feeler's direction lies outside its
+// face's window (Rust: lightbuf::EMPTY).
+const uint LB_EMPTY = 0xFFFFFFFFu;
+
+// The index along a face's side of coordinate u under the face's window
+// (origin o, sc cells per unit) at res cells; false more than a cell
+// outside it (or an empty face, sc = 0).
+bool lightbuf_index(float u, float o, float sc, uint res, out uint i) {
+    PRECISE float x = (u - o) * sc;
+    i = 0u;
+    if (!(x >= -1.0 && x < float(res) + 1.0) || sc == 0.0) {
+        return false;
+    }
+    i = min(uint(max(int(x), 0)), res - 1u);
+    return true;
 }
 
 // The cell of light `light`'s buffer (resolution res) that direction c
-// (from the light towards the feeler's origin) falls in; false when c has
-// no dominant component (zero, infinite or NaN). The dominant axis is x on
-// ties with y or z, then y on a tie with z.
-bool lightbuf_cell(uint res, uint light, vec3 c, out uint cell) {
+// (from the light towards the feeler's origin) falls in (LB_EMPTY outside
+// the face's window), and in m the depth of the feeler's origin along
+// that face's axis; false when c has no dominant component (zero,
+// infinite or NaN). The dominant axis is x on ties with y or z, then y on
+// a tie with z.
+bool lightbuf_cell(uint res, uint light, vec3 c, out uint cell, out float m) {
     float ax = abs(c.x);
     float ay = abs(c.y);
     float az = abs(c.z);
     uint axis;
-    float m;
     float u;
     float v;
     bool neg;
@@ -55,30 +66,43 @@ bool lightbuf_cell(uint res, uint light, vec3 c, out uint cell) {
     uint face = axis * 2u + (neg ? 1u : 0u);
     PRECISE float un = u / m;
     PRECISE float vn = v / m;
-    uint iu = lightbuf_index(un, res);
-    uint iv = lightbuf_index(vn, res);
-    cell = ((light * 6u + face) * res + iv) * res + iu;
+    // The face's window: after the cells' offsets, four words a face.
+    uint w = g.counts.z * 6u * res * res + 1u + (light * 6u + face) * 4u;
+    uint iu;
+    uint iv;
+    bool inu = lightbuf_index(un, uintBitsToFloat(lb_start_at(w)),
+                              uintBitsToFloat(lb_start_at(w + 1u)), res, iu);
+    bool inv = lightbuf_index(vn, uintBitsToFloat(lb_start_at(w + 2u)),
+                              uintBitsToFloat(lb_start_at(w + 3u)), res, iv);
+    cell = inu && inv ? ((light * 6u + face) * res + iv) * res + iu : LB_EMPTY;
     return true;
 }
 
 // Runs shadow query q over the unbounded primitives, then the primitives
-// light buffer cell `cell` lists.
-void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell) {
+// light buffer cell `cell` lists, nearest the light first (a pair a
+// reference: the primitive, the bits of its least depth), up to the
+// feeler's origin's depth m.
+void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell, float m) {
     query_unbounded(q, ray, pre);
-    if (q.done) {
+    if (q.done || cell == LB_EMPTY) {
         return;
     }
     work_cells += 1u;
     uint start = lb_start_at(cell);
     uint end = lb_start_at(cell + 1u);
     uint k = start;
+    bool deeper = false;
     for (; k < end; k++) {
-        uint r = lb_ref_at(k);
+        if (uintBitsToFloat(lb_ref_at(2u * k + 1u)) > m) {
+            deeper = true;
+            break;
+        }
+        uint r = lb_ref_at(2u * k);
         if (query_prim(q, load_prim(r), r, ray, pre)) {
             break;
         }
     }
-    if (!q.done && k != end) {
+    if (!q.done && !deeper && k != end) {
         loops_cut += 1u;
     }
 }

@@ -838,9 +838,10 @@ fn pack_lb(s: &Scene, accel: Accel) -> Packed {
     .unwrap();
     assert_eq!(p.structure(), accel);
     assert!(p.globals.flags[3] > 0, "no light buffer was built");
+    // The offsets, then four window words per light and face.
     assert_eq!(
         p.lb_start.len() as u32,
-        p.globals.flags[3].pow(2) * 6 * p.globals.counts[2] + 1
+        p.globals.flags[3].pow(2) * 6 * p.globals.counts[2] + 1 + 24 * p.globals.counts[2]
     );
     p
 }
@@ -921,6 +922,37 @@ proptest! {
 }
 
 proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// Feelers from just in front of and just behind the spheres'
+    /// surfaces (where a cell's depth cut decides between testing a
+    /// sphere and stopping before it) equal brute force, towards every
+    /// light, the far one included (whose faces' windows are small).
+    #[test]
+    fn light_buffer_feelers_from_surfaces_equal_brute_force(
+        seed in 0u64..1000,
+        count in 1usize..300,
+        clustered: bool,
+        which in 0usize..4,
+    ) {
+        let s = scene_with_lights(seed, count, clustered);
+        let mut points = Vec::new();
+        for o in &s.objects {
+            if let Shape::Sphere { center, radius } = o.shape {
+                for axis in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y, DVec3::NEG_Z] {
+                    for f in [1.0 - 1e-3, 1.0 - 1e-6, 1.0 + 1e-6, 1.0 + 1e-3] {
+                        let p = center + axis * radius * f;
+                        points.push([p.x as f32, p.y as f32, p.z as f32]);
+                    }
+                }
+            }
+        }
+        let accel = [Accel::Grid, Accel::Bvh, Accel::Octree, Accel::Hybrid][which];
+        check_feelers(&pack_lb(&s, accel), &points)?;
+    }
+}
+
+proptest! {
     #![proptest_config(ProptestConfig::with_cases(16))]
 
     /// `--shadows lightbuffer` renders the plain image bit for bit, with
@@ -945,17 +977,23 @@ proptest! {
 
 /// The light buffer lists far fewer primitives per feeler than there are
 /// (it prunes), and the light inside a primitive's bounds lists that
-/// primitive in every cell.
+/// primitive in every cell. Its offsets are followed by four window words
+/// per light and face, its references are (primitive, depth) pairs.
 #[test]
 fn light_buffer_cells_prune() {
     let s = scene_with_lights(7, 600, false);
     let p = pack_lb(&s, Accel::Grid);
-    let cells = p.lb_start.len() - 1;
-    let mean = p.lb_refs.len() as f64 / cells as f64;
+    let lights = p.lights.len();
+    let cells = p.lb_start.len() - 1 - 24 * lights;
+    let res = p.globals.flags[3] as usize;
+    assert_eq!(cells, lights * 6 * res * res);
+    let refs = p.lb_refs.len() / 2;
+    assert_eq!(p.lb_start[cells] as usize, refs);
+    let mean = refs as f64 / cells as f64;
     let n = p.globals.counts[0] as f64;
     assert!(mean < n / 4.0, "{mean} refs per cell of {n} primitives");
     assert_eq!(p.lightbuf.cells, cells);
-    assert_eq!(p.lightbuf.refs, p.lb_refs.len());
+    assert_eq!(p.lightbuf.refs, refs);
 }
 
 /// A feeler through glass that the octree lists in many leaves multiplies

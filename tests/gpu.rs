@@ -2069,18 +2069,28 @@ fn the_host_reads_the_longest_cell_list_from_the_offsets() {
     }
 }
 
-/// With light buffers on SPD gears at its default size (a few cells of
-/// far lights list hundreds of primitives: 981), the longest cell list is what
+/// With light buffers on a column of 800 spheres seen end-on from the
+/// light (every sphere's directions cover the window's centre, so its
+/// cells list all of them, nearest first), the longest cell list is what
 /// the host names, with `--shadows plain` as the remedy; plain feelers on
 /// the same scene name something else. Needs no device.
 #[test]
 fn the_host_names_a_crowded_light_buffer_cell() {
-    let gears = whitted::gen::spd::generate(whitted::gen::spd::SpdScene::Gears, None).unwrap();
+    let mut t = String::from(
+        "[camera]\nfrom = [4, 0, 40]\nat = [0, 0, 40]\n\n[[light]]\nposition = [0, 0, -10]\ncolor = 0.5\n",
+    );
+    for k in 0..800 {
+        t.push_str(&format!(
+            "\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, {}]\nradius = 0.04\n",
+            k as f64 * 0.1
+        ));
+    }
     let settings = |shadows| Settings {
         shadows,
-        ..whitted::pack::Preset::Spd.settings()
+        accel: Accel::Bvh,
+        ..common::small(16, 16)
     };
-    let p = whitted::pack::pack(&gears, &settings(Shadows::LightBuffer)).unwrap();
+    let p = common::parse(&t, &settings(Shadows::LightBuffer));
     let load = LoopLoad::of(&p);
     let Driver::LightBufferCell(n) = load.largest() else {
         panic!("{:?}", load.drivers());
@@ -2091,7 +2101,7 @@ fn the_host_names_a_crowded_light_buffer_cell() {
         .largest()
         .describe()
         .contains("a light-buffer cell listing"));
-    let plain = whitted::pack::pack(&gears, &settings(Shadows::Plain)).unwrap();
+    let plain = common::parse(&t, &settings(Shadows::Plain));
     let lp = LoopLoad::of(&plain);
     assert_eq!(lp.lb_refs, 0);
     assert!(lp.worst() < load.worst());

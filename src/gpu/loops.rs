@@ -211,7 +211,9 @@ impl LoopLoad {
             longest(&p.cell_start[..n])
         };
         let lb_refs = if g.flags[3] > 0 {
-            longest(&p.lb_start)
+            // The offsets, not the windows after them (pack::lightbuf).
+            let cells = crate::pack::lightbuf::cells(g.counts[2] as usize, g.flags[3]) as usize;
+            longest(&p.lb_start[..(cells + 1).min(p.lb_start.len())])
         } else {
             0
         };

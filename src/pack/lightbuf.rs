@@ -5,10 +5,19 @@
 //!
 //! Layout: cell `((light·6 + face)·R + iv)·R + iu`, face = 2·axis + (1 when
 //! the direction's dominant component is negative); for axis a the cell's
-//! coordinates are u = c_{a+1}/|c_a|, v = c_{a+2}/|c_a| (indices mod 3),
-//! each of [−1, 1] cut into R equal cells. `start` holds `cells + 1`
-//! offsets into `refs` (primitive indices into `prims`, ascending in each
-//! cell). R is `Globals::flags.w` (0: no light buffer).
+//! coordinates are u = c_{a+1}/|c_a|, v = c_{a+2}/|c_a| (indices mod 3).
+//! Each face is cut into R × R cells over its *window*: the rectangle of
+//! u, v that the primitives seen through that face cover (the whole face
+//! where a primitive surrounds the light), so that a light far from the
+//! scene spends its cells where the scene is. `start` holds `cells + 1`
+//! offsets into `refs`, then per light and face the window's f32 words
+//! `[u0, su, v0, sv]`: iu = ⌊(u − u0)·su⌋ (su = 0: nothing seen through
+//! that face). `refs` holds a pair per reference, the primitive's index
+//! into `prims` and the f32 bits of its least depth along the face's axis
+//! (its widened box's, rounded down), each cell's pairs nearest the light
+//! first (primitive order on ties): a feeler stops at the first pair
+//! deeper than its own origin, which nothing beyond can block. R is
+//! `Globals::flags.w` (0: no light buffer).
 //!
 //! Filing is conservative (docs/method.md, "Light buffers"): a feeler from
 //! `o` lies within a distance ρ of the ray from the light through `o`
@@ -21,16 +30,16 @@
 use super::grid::Bounds;
 
 /// Most cells along a face's side.
-pub const RES_MAX: u32 = 64;
+pub const RES_MAX: u32 = 128;
 /// Fewest cells along a face's side.
 pub const RES_MIN: u32 = 4;
 
-/// The resolution for `n` finite primitives: ⌈√n⌉ within
-/// [`RES_MIN`, `RES_MAX`], so a cell lists a few primitives' worth of
-/// directions (each primitive covers at least the 3 × 3 cells its padding
-/// gives it).
+/// The resolution for `n` finite primitives: ⌈2√n⌉ within
+/// [`RES_MIN`, `RES_MAX`], so that a window's cells outnumber the
+/// primitives seen through it (each primitive covers at least the 3 × 3
+/// cells its padding gives it).
 pub fn resolution(n: usize) -> u32 {
-    ((n as f64).sqrt().ceil() as u32).clamp(RES_MIN, RES_MAX)
+    ((2.0 * (n as f64).sqrt()).ceil() as u32).clamp(RES_MIN, RES_MAX)
 }
 
 /// Cells of `lights` light buffers of resolution `res`.
@@ -38,8 +47,9 @@ pub fn cells(lights: usize, res: u32) -> u64 {
     lights as u64 * 6 * res as u64 * res as u64
 }
 
-/// The cell rectangles of one primitive (`None`: every cell).
-type Filed = (u32, Option<Vec<(usize, [u32; 4])>>);
+/// Per face, the primitive's span of u and v (clamped to [−1, 1]) and its
+/// least depth along the face's axis; `None`: every cell.
+type Spans = Option<Vec<(usize, [f64; 4], f64)>>;
 
 /// A built light buffer.
 #[derive(Clone, Debug, Default)]
@@ -58,21 +68,15 @@ pub fn widening(l: [f64; 3], eps: f64, scale: f64) -> f64 {
     (4.0 * eps + 1e-5 * (mag + scale)).max(1e-30)
 }
 
-/// The cell rectangles (face, iu0..=iu1, iv0..=iv1) light `l` files box
-/// `b` in, widened by `rho`; `None`: every cell.
-fn rects(l: [f64; 3], b: &Bounds, rho: f64, res: u32) -> Option<Vec<(usize, [u32; 4])>> {
+/// The spans light `l` sees box `b` in, widened by `rho`, per face; `None`:
+/// every cell.
+fn spans(l: [f64; 3], b: &Bounds, rho: f64, res: u32) -> Spans {
     let lo: [f64; 3] = std::array::from_fn(|i| b.lo[i] - rho - l[i]);
     let hi: [f64; 3] = std::array::from_fn(|i| b.hi[i] + rho - l[i]);
     if (0..3).all(|i| lo[i] - rho <= 0.0 && hi[i] + rho >= 0.0) {
         return None;
     }
     let r = res as f64;
-    let index = |u: f64| ((u + 1.0) * 0.5 * r).floor();
-    let range = |ulo: f64, uhi: f64| -> [u32; 2] {
-        let a = (index(ulo) - 1.0).clamp(0.0, r - 1.0);
-        let b = (index(uhi) + 1.0).clamp(0.0, r - 1.0);
-        [a as u32, b as u32]
-    };
     let mut out = Vec::new();
     for a in 0..3 {
         for neg in [false, true] {
@@ -103,19 +107,55 @@ fn rects(l: [f64; 3], b: &Bounds, rho: f64, res: u32) -> Option<Vec<(usize, [u32
             if u0 > m || u1 < -m || v0 > m || v1 < -m {
                 continue;
             }
-            let [iu0, iu1] = range(u0, u1);
-            let [iv0, iv1] = range(v0, v1);
-            out.push((2 * a + neg as usize, [iu0, iu1, iv0, iv1]));
+            let c = |x: f64| x.clamp(-1.0, 1.0);
+            out.push((2 * a + neg as usize, [c(u0), c(u1), c(v0), c(v1)], d0));
         }
     }
     Some(out)
 }
 
+/// A face's window: the f32 origin and cells per unit of u and v
+/// (`[u0, su, v0, sv]`), from the union of its spans; an empty face's
+/// scale is 0.
+fn window(span: Option<[f64; 4]>, res: u32) -> [f32; 4] {
+    match span {
+        None => [0.0; 4],
+        Some([u0, u1, v0, v1]) => {
+            let s = |a: f64, b: f64| (res as f64 / (b - a).max(1e-30)) as f32;
+            [u0 as f32, s(u0, u1), v0 as f32, s(v0, v1)]
+        }
+    }
+}
+
+/// The cell index range of span a..b under window origin `o`, scale `s`
+/// (f32 values): one more cell each side, clamped.
+fn range(a: f64, b: f64, o: f32, s: f32, res: u32) -> [u32; 2] {
+    let r = res as f64;
+    let idx = |u: f64| ((u - o as f64) * s as f64).floor();
+    let x = (idx(a) - 1.0).clamp(0.0, r - 1.0);
+    let y = (idx(b) + 1.0).clamp(0.0, r - 1.0);
+    [x as u32, y as u32]
+}
+
 /// Bytes the build holds per light and primitive while it counts: the
-/// primitive's entry (`Filed`, 32 B) and its cell rectangles on the heap
-/// (a box seen from a point spans at most three cube faces, 24 B each,
-/// with the allocation's own overhead).
-pub const FILED_BYTES: u64 = 32 + 3 * 24 + 16;
+/// primitive's spans on the heap, then its cell rectangles (a box seen
+/// from a point spans at most three cube faces, 48 and 32 B each, with
+/// the allocations' own overhead).
+pub const FILED_BYTES: u64 = 2 * 24 + 3 * (48 + 32) + 32;
+
+/// One primitive's cell rectangles for one light: (face, iu0..=iu1,
+/// iv0..=iv1, least depth), or `None`: every cell at depth 0.
+type Rects = Option<Vec<(usize, [u32; 4], f32)>>;
+
+/// `d` rounded down to an f32.
+fn f32_down(d: f64) -> f32 {
+    let f = d as f32;
+    if f as f64 > d {
+        f.next_down()
+    } else {
+        f
+    }
+}
 
 /// Builds the light buffers of `lights` (camera-relative positions) over
 /// `bounds` (the finite primitives' bounds, in `prims` order), or `None`
@@ -141,84 +181,129 @@ pub fn build(
     if transient > max_bytes {
         return None;
     }
-    // Per light, in parallel: the cell rectangles of every primitive.
-    let filed: Vec<Vec<Filed>> = lights
+    // Per light, in parallel: every primitive's spans, each face's window
+    // (the union of its spans; every face whole where a primitive is in
+    // every cell), then the spans as cell rectangles under the windows.
+    let filed: Vec<(Vec<Rects>, [[f32; 4]; 6])> = lights
         .par_iter()
         .map(|&l| {
             let rho = widening(l, eps, scale);
-            bounds
-                .iter()
-                .enumerate()
-                .map(|(i, b)| (i as u32, rects(l, b, rho, res)))
-                .collect()
+            let sp: Vec<Spans> = bounds.iter().map(|b| spans(l, b, rho, res)).collect();
+            let mut win: [Option<[f64; 4]>; 6] = [None; 6];
+            for x in sp.iter().flatten() {
+                for &(f, [u0, u1, v0, v1], _) in x {
+                    win[f] = Some(match win[f] {
+                        None => [u0, u1, v0, v1],
+                        Some(w) => [w[0].min(u0), w[1].max(u1), w[2].min(v0), w[3].max(v1)],
+                    });
+                }
+            }
+            if sp.iter().any(|x| x.is_none()) {
+                win = [Some([-1.0, 1.0, -1.0, 1.0]); 6];
+            }
+            let win = win.map(|w| window(w, res));
+            let rects = sp
+                .into_iter()
+                .map(|x| {
+                    x.map(|v| {
+                        v.into_iter()
+                            .map(|(f, [u0, u1, v0, v1], d0)| {
+                                let w = win[f];
+                                let [a, b] = range(u0, u1, w[0], w[1], res);
+                                let [c, d] = range(v0, v1, w[2], w[3], res);
+                                (f, [a, b, c, d], f32_down(d0))
+                            })
+                            .collect()
+                    })
+                })
+                .collect();
+            (rects, win)
         })
         .collect();
-    let mut count = vec![0u64; ncells + 1];
-    let mut total = 0u64;
-    for (li, list) in filed.iter().enumerate() {
-        let base = li * per_light;
-        for (_, rs) in list {
-            match rs {
-                None => {
-                    for c in &mut count[base..base + per_light] {
-                        *c += 1;
-                    }
-                    total += per_light as u64;
-                }
-                Some(rs) => {
-                    for &(f, [u0, u1, v0, v1]) in rs {
-                        for iv in v0..=v1 {
-                            for iu in u0..=u1 {
-                                count[base
-                                    + (f * res as usize + iv as usize) * res as usize
-                                    + iu as usize] += 1;
-                            }
-                        }
-                        total += (u1 - u0 + 1) as u64 * (v1 - v0 + 1) as u64;
+    // Every reference's cell, in primitive order (so that a stable sort
+    // by depth leaves ties in primitive order).
+    let cells_of = |base: usize, r: &Rects, f: &mut dyn FnMut(usize, f32)| match r {
+        None => (0..per_light).for_each(|c| f(base + c, 0.0)),
+        Some(rs) => {
+            for &(face, [u0, u1, v0, v1], d) in rs {
+                for iv in v0..=v1 {
+                    for iu in u0..=u1 {
+                        f(
+                            base + (face * res as usize + iv as usize) * res as usize + iu as usize,
+                            d,
+                        );
                     }
                 }
             }
         }
-    }
+    };
+    // Each light's references per cell, counted in parallel and checked
+    // against the allowance before anything is filed.
+    let counts: Vec<Vec<u32>> = filed
+        .par_iter()
+        .map(|(list, _)| {
+            let mut count = vec![0u32; per_light];
+            for r in list {
+                cells_of(0, r, &mut |c, _| count[c] += 1);
+            }
+            count
+        })
+        .collect();
+    let total: u64 = counts.iter().flatten().map(|&c| c as u64).sum();
     if total > max_refs || total > u32::MAX as u64 {
         return None;
     }
-    let mut start = Vec::with_capacity(ncells + 1);
+    let mut start = Vec::with_capacity(ncells + 1 + lights.len() * 24);
     let mut acc = 0u32;
-    for c in &count[..ncells] {
+    for c in counts.iter().flatten() {
         start.push(acc);
-        acc += *c as u32;
+        acc += c;
     }
     start.push(acc);
-    drop(count);
-    let mut next: Vec<u32> = start[..ncells].to_vec();
-    let mut refs = vec![0u32; total as usize];
-    let mut put = |cell: usize, i: u32| {
-        refs[next[cell] as usize] = i;
-        next[cell] += 1;
-    };
-    // Primitives in ascending order, so each cell's list is ascending.
-    for (li, list) in filed.iter().enumerate() {
-        let base = li * per_light;
-        for (i, rs) in list {
-            match rs {
-                None => (0..per_light).for_each(|c| put(base + c, *i)),
-                Some(rs) => {
-                    for &(f, [u0, u1, v0, v1]) in rs {
-                        for iv in v0..=v1 {
-                            for iu in u0..=u1 {
-                                put(
-                                    base + (f * res as usize + iv as usize) * res as usize
-                                        + iu as usize,
-                                    *i,
-                                );
-                            }
-                        }
-                    }
-                }
+    // Each light's stretch of the references, filed in primitive order
+    // (so that a stable sort by depth leaves ties in that order), then
+    // each cell's list sorted nearest the light first; the lights in
+    // parallel.
+    // A reference: the primitive and the f32 bits of its least depth.
+    let mut entries = vec![[0u32; 2]; total as usize];
+    let mut chunks = Vec::with_capacity(lights.len());
+    let mut rest = entries.as_mut_slice();
+    for count in &counts {
+        let n: usize = count.iter().map(|&c| c as usize).sum();
+        let (head, tail) = rest.split_at_mut(n);
+        chunks.push(head);
+        rest = tail;
+    }
+    chunks
+        .into_par_iter()
+        .zip(filed.par_iter())
+        .zip(counts.par_iter())
+        .for_each(|((chunk, (list, _)), count)| {
+            let mut next = Vec::with_capacity(per_light + 1);
+            let mut acc = 0u32;
+            for &c in count {
+                next.push(acc);
+                acc += c;
             }
+            next.push(acc);
+            let bounds = next.clone();
+            for (i, r) in list.iter().enumerate() {
+                cells_of(0, r, &mut |c, d| {
+                    chunk[next[c] as usize] = [i as u32, d.to_bits()];
+                    next[c] += 1;
+                });
+            }
+            for c in 0..per_light {
+                chunk[bounds[c] as usize..bounds[c + 1] as usize]
+                    .sort_by(|a, b| f32::from_bits(a[1]).total_cmp(&f32::from_bits(b[1])));
+            }
+        });
+    for (_, win) in &filed {
+        for w in win {
+            start.extend(w.iter().map(|x| x.to_bits()));
         }
     }
+    let refs = entries.into_flattened();
     Some(LightBuf { res, start, refs })
 }
 
@@ -232,27 +317,83 @@ mod tests {
             lo: [-1.0; 3],
             hi: [1.0; 3],
         };
-        assert!(rects([0.0; 3], &b, 1e-6, 8).is_none());
+        assert!(spans([0.0; 3], &b, 1e-6, 8).is_none());
         // a box touching the light's position, too
         let b = Bounds {
             lo: [0.0, 2.0, 2.0],
             hi: [1.0, 3.0, 3.0],
         };
-        assert!(rects([0.0, 2.0, 2.0], &b, 1e-6, 8).is_none());
+        assert!(spans([0.0, 2.0, 2.0], &b, 1e-6, 8).is_none());
     }
 
     #[test]
-    fn a_small_box_on_an_axis_covers_the_face_centre_padded() {
+    fn a_small_box_on_an_axis_is_its_face_s_window() {
         let b = Bounds {
             lo: [9.9, -0.01, -0.01],
             hi: [10.1, 0.01, 0.01],
         };
-        let r = rects([0.0; 3], &b, 1e-6, 8).unwrap();
-        // face +x only, the four centre cells padded by one: 2..=5
-        assert_eq!(r, vec![(0, [2, 5, 2, 5])]);
+        let rho = widening([0.0; 3], 1e-7, 10.0);
+        let sp = spans([0.0; 3], &b, rho, RES_MIN).unwrap();
+        // face +x only, u and v within ±0.01/9.9 widened
+        assert_eq!(sp.len(), 1);
+        let (face, [u0, u1, v0, v1], d0) = sp[0];
+        assert_eq!(face, 0);
+        assert!(u0 < -0.01 / 9.9 && u0 > -0.0011 && u1 > 0.01 / 9.9 && u1 < 0.0011);
+        assert_eq!((u0, u1), (v0, v1));
+        assert_eq!(d0, 9.9 - rho);
         let lb = build(&[[0.0; 3]], &[b], 1e-7, 10.0, u64::MAX, u64::MAX).unwrap();
         assert_eq!(lb.res, RES_MIN);
-        assert_eq!(lb.start.len(), 6 * 16 + 1);
+        // the offsets, then four words per face
+        assert_eq!(lb.start.len(), 6 * 16 + 1 + 24);
+        let win = |f: usize, k: usize| f32::from_bits(lb.start[6 * 16 + 1 + 4 * f + k]);
+        // face +x spreads its 4 × 4 cells over the box's directions
+        assert!((win(0, 0) as f64 - u0).abs() < 1e-9);
+        assert!((win(0, 1) as f64 - 4.0 / (u1 - u0)).abs() < 1e-3 * win(0, 1) as f64);
+        // the other faces see nothing
+        assert!((1..6).all(|f| win(f, 1) == 0.0 && win(f, 3) == 0.0));
+        // every cell of face +x lists the box (padding), the others none
+        assert_eq!(lb.start[16], 16);
+        assert_eq!(lb.refs.len(), 2 * 16);
+        assert!(lb
+            .refs
+            .chunks(2)
+            .all(|p| p[0] == 0 && f32::from_bits(p[1]) as f64 <= d0));
+    }
+
+    #[test]
+    fn each_cell_lists_the_nearest_first() {
+        let at = |x: f64| Bounds {
+            lo: [x - 0.1, -0.01, -0.01],
+            hi: [x + 0.1, 0.01, 0.01],
+        };
+        // primitive 0 the farthest from the light, 2 the nearest
+        let lb = build(
+            &[[0.0; 3]],
+            &[at(10.0), at(5.0), at(2.0)],
+            1e-7,
+            10.0,
+            u64::MAX,
+            u64::MAX,
+        )
+        .unwrap();
+        let cell = |c: usize| {
+            let (a, b) = (lb.start[c] as usize, lb.start[c + 1] as usize);
+            lb.refs[2 * a..2 * b]
+                .chunks(2)
+                .map(|p| p[0])
+                .collect::<Vec<_>>()
+        };
+        // the window is the nearest box's (widest) span: the centre cells
+        // list all three, nearest first
+        let centre = 2 * 4 + 2;
+        assert_eq!(cell(centre), vec![2, 1, 0]);
+        let depths: Vec<f32> = (0..lb.refs.len() / 2)
+            .map(|k| f32::from_bits(lb.refs[2 * k + 1]))
+            .collect();
+        for c in 0..16 {
+            let (a, b) = (lb.start[c] as usize, lb.start[c + 1] as usize);
+            assert!(depths[a..b].windows(2).all(|w| w[0] <= w[1]), "cell {c}");
+        }
     }
 
     /// What the build holds while counting is checked against its

@@ -282,8 +282,9 @@ pub struct Packed {
     pub refs: Pages<u32>,
     /// The BVH's 4-wide nodes (`BvhNode`); empty with the grid.
     pub bvh: Pages<BvhNode>,
-    /// Light buffers (`lightbuf`): `cells + 1` offsets into `lb_refs`, and
-    /// the primitive indices; empty without them (`globals.flags.w` = 0).
+    /// Light buffers (`lightbuf`): `cells + 1` offsets into `lb_refs` and
+    /// each face's window, and the references as (primitive, depth) pairs;
+    /// empty without them (`globals.flags.w` = 0).
     pub lb_start: Pages<u32>,
     pub lb_refs: Pages<u32>,
     /// The CPU grid walk's own arrays, derived from the above (not
@@ -1361,10 +1362,12 @@ pub fn pack_with_progress(
             ..need
         };
         let free = budget.limit().saturating_sub(now.peak());
+        // Words: the offsets, each light's six windows of four, and two a
+        // reference.
         let room = free / 4;
         let res = lightbuf::resolution(ordered.len());
         let cells = lightbuf::cells(lights.len(), res);
-        let max_refs = room.saturating_sub(cells + 1);
+        let max_refs = room.saturating_sub(cells + 1 + 24 * lights.len() as u64) / 2;
         let at: Vec<[f64; 3]> = scene
             .lights
             .iter()
@@ -1480,8 +1483,8 @@ pub fn pack_with_progress(
     };
     let lightbuf = LightBufInfo {
         res: lb.res,
-        cells: lb.start.len().saturating_sub(1),
-        refs: lb.refs.len(),
+        cells: lightbuf::cells(if lb.res > 0 { lights.len() } else { 0 }, lb.res) as usize,
+        refs: lb.refs.len() / 2,
         bytes: (lb.start.len() + lb.refs.len()) * 4,
         build_seconds: lb_seconds,
     };

@@ -90,12 +90,12 @@ pub fn transmittance<F: Real>(
     let g = s.globals;
     let res = g.flags[3];
     let cell = if res > 0 && light < g.counts[2] as usize {
-        lightbuf_cell(res, light as u32, ray.o - V3::of(&s.lights[light].pos))
+        lightbuf_cell(s, res, light as u32, ray.o - V3::of(&s.lights[light].pos))
     } else {
         None
     };
     match cell {
-        Some(c) => lightbuf_traverse(s, ray, pre, &mut q, c, work),
+        Some((c, m)) => lightbuf_traverse(s, ray, pre, &mut q, c, m, work),
         None => accel_traverse(s, ray, pre, &mut q, work),
     }
     if q.done {

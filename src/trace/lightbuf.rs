@@ -8,21 +8,31 @@ use super::math::{Ray, Real, V3};
 use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
 
-/// The index along a face's side of coordinate `u` (in [−1, 1]) at `res`
-/// cells: ⌊(u + 1)·0.5·res⌋, at most res − 1.
+/// No cell lists anything there: the feeler's direction lies outside its
+/// face's window.
+pub const EMPTY: u32 = u32::MAX;
+
+/// The index along a face's side of coordinate `u` under the face's window
+/// (origin `o`, `s` cells per unit) at `res` cells; `None` more than a cell
+/// outside it (or an empty face, `s` = 0).
 #[inline(always)]
-pub fn lightbuf_index<F: Real>(u: F, res: u32) -> u32 {
-    let x = (u + F::one()) * F::of(0.5) * F::of(res as f32);
+pub fn lightbuf_index<F: Real>(u: F, o: f32, sc: f32, res: u32) -> Option<u32> {
+    let x = (u - F::of(o)) * F::of(sc);
+    if !(x >= -F::one() && x < F::of(res as f32) + F::one()) || sc == 0.0 {
+        return None;
+    }
     let i = x.trunc_i32().max(0) as u32;
-    i.min(res - 1)
+    Some(i.min(res - 1))
 }
 
 /// The cell of light `light`'s buffer (resolution `res`) that direction
-/// `c` (from the light towards the feeler's origin) falls in; `None` when
-/// `c` has no dominant component (zero, infinite or NaN). The dominant
-/// axis is x on ties with y or z, then y on a tie with z.
+/// `c` (from the light towards the feeler's origin) falls in, and the
+/// depth of the feeler's origin along that face's axis; `None` when `c`
+/// has no dominant component (zero, infinite or NaN). The cell is
+/// `EMPTY` outside the face's window. The dominant axis is x on ties with
+/// y or z, then y on a tie with z.
 #[inline(always)]
-pub fn lightbuf_cell<F: Real>(res: u32, light: u32, c: V3<F>) -> Option<u32> {
+pub fn lightbuf_cell<F: Real>(s: &SceneView, res: u32, light: u32, c: V3<F>) -> Option<(u32, F)> {
     let ax = c.x.abs();
     let ay = c.y.abs();
     let az = c.z.abs();
@@ -54,30 +64,48 @@ pub fn lightbuf_cell<F: Real>(res: u32, light: u32, c: V3<F>) -> Option<u32> {
         return None;
     }
     let face = axis * 2 + neg as u32;
-    let iu = lightbuf_index(u / m, res);
-    let iv = lightbuf_index(v / m, res);
-    Some(((light * 6 + face) * res + iv) * res + iu)
+    let ncells = s.globals.counts[2] as usize * 6 * res as usize * res as usize;
+    let w = ncells + 1 + ((light * 6 + face) * 4) as usize;
+    let f = |k: usize| f32::from_bits(s.lb_start[w + k]);
+    let cell = match (
+        lightbuf_index(u / m, f(0), f(1), res),
+        lightbuf_index(v / m, f(2), f(3), res),
+    ) {
+        (Some(iu), Some(iv)) => ((light * 6 + face) * res + iv) * res + iu,
+        _ => EMPTY,
+    };
+    Some((cell, m))
 }
 
 /// Runs shadow query `q` over the unbounded primitives, then the
-/// primitives light buffer cell `cell` lists.
+/// primitives light buffer cell `cell` lists, nearest the light first,
+/// up to the feeler's origin's depth `m`.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn lightbuf_traverse<F: Real>(
     s: &SceneView,
     ray: &Ray<F>,
     pre: &RayPre<F>,
     q: &mut Query<F>,
     cell: u32,
+    m: F,
     work: &mut Work,
 ) {
     if query_unbounded(s, q, ray, pre, work) {
+        return;
+    }
+    if cell == EMPTY {
         return;
     }
     work.cells += 1;
     let start = s.lb_start[cell as usize];
     let end = s.lb_start[cell as usize + 1];
     for k in start..end {
-        let r = s.lb_refs[k as usize];
+        let d0 = f32::from_bits(s.lb_refs[2 * k as usize + 1]);
+        if F::of(d0) > m {
+            return;
+        }
+        let r = s.lb_refs[2 * k as usize];
         if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
             return;
         }
