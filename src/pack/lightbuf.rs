@@ -23,9 +23,11 @@
 //! `o` lies within a distance ρ of the ray from the light through `o`
 //! (the surface offset moved `o` off the line to the light, and f32
 //! rounding bends it), so each primitive's bounds, widened by ρ, are
-//! projected onto the faces; the cell range gets one more cell on every
-//! side for the f32 rounding of the feeler's cell; a widened box that
-//! (widened once more) holds the light goes into every cell.
+//! projected onto the faces; the windows and spans are widened by
+//! `U_ERR` for the f32 rounding of the feeler's u and v, and each cell
+//! range gets one more cell on every side for that of its cell index; a
+//! widened box that (widened once more) holds the light goes into every
+//! cell.
 
 use super::grid::Bounds;
 
@@ -114,23 +116,40 @@ fn spans(l: [f64; 3], b: &Bounds, rho: f64, res: u32) -> Spans {
     Some(out)
 }
 
+/// How far a feeler's f32 u (or v) may lie from its exact value: u =
+/// c_b / |c_a| after c = o − L, three roundings of at most 2⁻²⁴ each of
+/// |u| ≤ 1, then the subtraction of the window's origin, 2⁻²⁴ of at most
+/// 2 more; 2⁻²⁰ is over twice their sum. The spans already hold every
+/// direction a blocker can lie in (widened by ρ); the windows and the
+/// cell ranges are widened by this too, so that however narrow a window
+/// (a small scene far from its light: cells of 10⁻⁷ in u), a feeler's f32
+/// cell is one its blockers are filed in.
+pub const U_ERR: f64 = 1.0 / (1u64 << 20) as f64;
+
 /// A face's window: the f32 origin and cells per unit of u and v
-/// (`[u0, su, v0, sv]`), from the union of its spans; an empty face's
-/// scale is 0.
+/// (`[u0, su, v0, sv]`), from the union of its spans widened by
+/// `U_ERR`; an empty face's scale is 0.
 fn window(span: Option<[f64; 4]>, res: u32) -> [f32; 4] {
     match span {
         None => [0.0; 4],
         Some([u0, u1, v0, v1]) => {
-            let s = |a: f64, b: f64| (res as f64 / (b - a).max(1e-30)) as f32;
-            [u0 as f32, s(u0, u1), v0 as f32, s(v0, v1)]
+            let s = |a: f64, b: f64| (res as f64 / (b - a + 2.0 * U_ERR)) as f32;
+            [
+                (u0 - U_ERR) as f32,
+                s(u0, u1),
+                (v0 - U_ERR) as f32,
+                s(v0, v1),
+            ]
         }
     }
 }
 
-/// The cell index range of span a..b under window origin `o`, scale `s`
-/// (f32 values): one more cell each side, clamped.
+/// The cell index range of span a..b (widened by `U_ERR`) under window
+/// origin `o`, scale `s` (f32 values): one more cell each side for the
+/// rounding of the feeler's cell index itself, clamped.
 fn range(a: f64, b: f64, o: f32, s: f32, res: u32) -> [u32; 2] {
     let r = res as f64;
+    let (a, b) = (a - U_ERR, b + U_ERR);
     let idx = |u: f64| ((u - o as f64) * s as f64).floor();
     let x = (idx(a) - 1.0).clamp(0.0, r - 1.0);
     let y = (idx(b) + 1.0).clamp(0.0, r - 1.0);
@@ -346,9 +365,11 @@ mod tests {
         // the offsets, then four words per face
         assert_eq!(lb.start.len(), 6 * 16 + 1 + 24);
         let win = |f: usize, k: usize| f32::from_bits(lb.start[6 * 16 + 1 + 4 * f + k]);
-        // face +x spreads its 4 × 4 cells over the box's directions
-        assert!((win(0, 0) as f64 - u0).abs() < 1e-9);
-        assert!((win(0, 1) as f64 - 4.0 / (u1 - u0)).abs() < 1e-3 * win(0, 1) as f64);
+        // face +x spreads its 4 × 4 cells over the box's directions, widened
+        // by the feeler's f32 error on each side
+        assert!((win(0, 0) as f64 - (u0 - U_ERR)).abs() < 1e-9);
+        let scale = 4.0 / (u1 - u0 + 2.0 * U_ERR);
+        assert!((win(0, 1) as f64 - scale).abs() < 1e-6 * scale);
         // the other faces see nothing
         assert!((1..6).all(|f| win(f, 1) == 0.0 && win(f, 3) == 0.0));
         // every cell of face +x lists the box (padding), the others none
