@@ -103,17 +103,6 @@ bool cache_hit_listed(uint i, Ray ray, float t) {
 // to test. A feeler whose origin is the light's position walks the
 // structure instead.
 vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
-    uint cached = shadow_cache_on() && light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
-    if (SHADOW_CACHE && cached != 0u &&
-        cache_admits(cached - 1u, shadow_leaf[shadow_slot(light)], ray, pre, dist)) {
-        work_tests += 1u;
-        Hit hc;
-        if (intersect(load_prim(cached - 1u), ray, pre, dist, hc) &&
-            cache_hit_listed(cached - 1u, ray, hc.t)) {
-            return vec3(0.0);
-        }
-    }
-    Query q = query_shadow(dist, light);
     uint res = g.flags.w;
     uint cell = 0u;
     float depth = 0.0;
@@ -122,6 +111,24 @@ vec3 transmittance(Ray ray, RayPre pre, float dist, uint light) {
         PRECISE vec3 c = ray.o - light_at(light).pos.xyz;
         use_lb = lightbuf_cell(res, light, c, cell, depth);
     }
+    uint cached = shadow_cache_on() && light < SHADOW_CACHE_LIGHTS ? shadow_cache[shadow_slot(light)] : 0u;
+    if (SHADOW_CACHE && cached != 0u) {
+        uint leaf = shadow_leaf[shadow_slot(light)];
+        // Through a light buffer the cache answers where the walk would
+        // test its blocker (lightbuf_admits); the same test then gives
+        // the same answer.
+        bool admitted = use_lb ? lightbuf_admits(cached - 1u, leaf, cell, depth)
+                               : cache_admits(cached - 1u, leaf, ray, pre, dist);
+        if (admitted) {
+            work_tests += 1u;
+            Hit hc;
+            if (intersect(load_prim(cached - 1u), ray, pre, dist, hc) &&
+                (use_lb || cache_hit_listed(cached - 1u, ray, hc.t))) {
+                return vec3(0.0);
+            }
+        }
+    }
+    Query q = query_shadow(dist, light);
     if (use_lb) {
         lightbuf_traverse(ray, pre, q, cell, depth);
     } else {

@@ -13,6 +13,28 @@
 // face's window (Rust: lightbuf::EMPTY).
 const uint LB_EMPTY = 0xFFFFFFFFu;
 
+// The shadow cache's leaf (shadow_leaf) of a blocker met through a light
+// buffer: this bit and 1 + the reference's index in lb_refs' pairs (no
+// BVH slot has it: bvh_leaf_admits turns it away). Rust: lightbuf::LB_LEAF.
+const uint LB_LEAF = 0x80000000u;
+
+// Whether the shadow cache may answer for its blocker, primitive i
+// (cached with leaf), for a feeler in light buffer cell `cell` at depth
+// m: an unbounded primitive always, a bounded one when it was met through
+// a light buffer at a reference of this cell that the walk reaches (its
+// depth not past m). Twin of trace::lightbuf::lightbuf_admits.
+bool lightbuf_admits(uint i, uint leaf, uint cell, float m) {
+    if (i >= g.counts.x && i < g.counts.y) {
+        return true;
+    }
+    if (cell == LB_EMPTY || (leaf & LB_LEAF) == 0u || leaf == LB_LEAF) {
+        return false;
+    }
+    uint k = (leaf & ~LB_LEAF) - 1u;
+    return k >= lb_start_at(cell) && k < lb_start_at(cell + 1u) && lb_ref_at(2u * k) == i &&
+           uintBitsToFloat(lb_ref_at(2u * k + 1u)) <= m;
+}
+
 // The index along a face's side of coordinate u under the face's window
 // (origin o, sc cells per unit) at res cells; false more than a cell
 // outside it (or an empty face, sc = 0).
@@ -99,6 +121,12 @@ void lightbuf_traverse(Ray ray, RayPre pre, inout Query q, uint cell, float m) {
         }
         uint r = lb_ref_at(2u * k);
         if (query_prim(q, load_prim(r), r, ray, pre)) {
+            // The blocker's reference, for the shadow cache
+            // (lightbuf_admits).
+            if (SHADOW_CACHE && shadow_cache_on() && q.light < SHADOW_CACHE_LIGHTS &&
+                shadow_cache[shadow_slot(q.light)] == r + 1u && k + 1u < LB_LEAF) {
+                shadow_leaf[shadow_slot(q.light)] = LB_LEAF | (k + 1u);
+            }
             break;
         }
     }

@@ -371,7 +371,8 @@ fn every_scene_matches_the_cpu_mirror() {
 
 /// With light buffers (bindings 12 and 13), every bundled scene and the
 /// SPD's gears render on the GPU as on the CPU mirror (bit for bit on
-/// lavapipe), and as plain shadow feelers do.
+/// lavapipe), with the shadow cache off and on, and as plain shadow
+/// feelers do.
 #[test]
 fn light_buffers_match_the_cpu_mirror() {
     let mut packs: Vec<(String, Settings, whitted::scene::Scene)> = Vec::new();
@@ -395,6 +396,14 @@ fn light_buffers_match_the_cpu_mirror() {
             };
             let name = format!("{name} {accel:?} lightbuffer");
             assert_close(&name, &c, &g);
+            // With the shadow cache on (off by default on lavapipe), which
+            // answers through the light buffer's cells.
+            let cached = GpuOptions {
+                shadow_cache: GpuShadowCache::On,
+                ..GpuOptions::default()
+            };
+            let (_, gc) = render_both(&p, &cached).expect("a device");
+            assert_close(&format!("{name}, cache on"), &c, &gc);
             let plain = whitted::pack::pack(&scene, &settings(Shadows::Plain)).unwrap();
             let pc = cpu::render(&plain, &|_, _| {});
             assert_eq!(pc.pixels, c.pixels, "{name}: plain and light buffer");

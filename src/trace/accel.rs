@@ -8,7 +8,7 @@
 use super::bvh::{bvh_leaf_admits, bvh_traverse};
 use super::grid::{clip_to_box, grid_traverse, lattice_plane};
 use super::intersect::{intersect, Hit, RayPre};
-use super::lightbuf::{lightbuf_cell, lightbuf_traverse};
+use super::lightbuf::{lightbuf_admits, lightbuf_cell, lightbuf_traverse};
 use super::math::{Ray, Real, V3};
 use super::octree::{octree_traverse, octree_traverse_stack};
 use super::query::{query_prim, query_unbounded, Query, Work};
@@ -63,8 +63,9 @@ pub fn closest_hit<F: Real>(
 /// to (≥ the light count: none); it indexes the shadow cache (≥
 /// `SHADOW_CACHE_LIGHTS`: none), whose primitive is tested first, and,
 /// when the scene carries light buffers (`Globals::flags.w` > 0), the
-/// light buffer whose cell lists the primitives to test. A feeler whose
-/// origin is the light's position walks the structure instead.
+/// light buffer whose cell lists the primitives to test (and which then
+/// decides whether the cache may answer). A feeler whose origin is the
+/// light's position walks the structure instead.
 pub fn transmittance<F: Real>(
     s: &SceneView,
     ray: &Ray<F>,
@@ -73,20 +74,6 @@ pub fn transmittance<F: Real>(
     light: usize,
     work: &mut Work,
 ) -> V3<F> {
-    let cached = if light < SHADOW_CACHE_LIGHTS as usize && s.shadow_cache() {
-        *work.cached(light)
-    } else {
-        0
-    };
-    if cached != 0 && cache_admits(s, cached - 1, *work.cached_leaf(light), ray, pre, dist) {
-        work.tests += 1;
-        if let Some(h) = intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist) {
-            if cache_hit_listed(s, cached - 1, ray, h.t) {
-                return V3::zero();
-            }
-        }
-    }
-    let mut q = Query::shadow(dist, light);
     let g = s.globals;
     let res = g.flags[3];
     let cell = if res > 0 && light < g.counts[2] as usize {
@@ -94,6 +81,30 @@ pub fn transmittance<F: Real>(
     } else {
         None
     };
+    let cached = if light < SHADOW_CACHE_LIGHTS as usize && s.shadow_cache() {
+        *work.cached(light)
+    } else {
+        0
+    };
+    if cached != 0 {
+        let leaf = *work.cached_leaf(light);
+        // Through a light buffer the cache answers where the walk would
+        // test its blocker: the feeler's cell lists it before the cut
+        // (`lightbuf_admits`); the same test then gives the same answer.
+        let admitted = match cell {
+            Some((c, m)) => lightbuf_admits(s, cached - 1, leaf, c, m),
+            None => cache_admits(s, cached - 1, leaf, ray, pre, dist),
+        };
+        if admitted {
+            work.tests += 1;
+            if let Some(h) = intersect(&s.prims[cached as usize - 1], s.extra, ray, pre, dist) {
+                if cell.is_some() || cache_hit_listed(s, cached - 1, ray, h.t) {
+                    return V3::zero();
+                }
+            }
+        }
+    }
+    let mut q = Query::shadow(dist, light);
     match cell {
         Some((c, m)) => lightbuf_traverse(s, ray, pre, &mut q, c, m, work),
         None => accel_traverse(s, ray, pre, &mut q, work),

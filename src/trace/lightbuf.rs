@@ -7,10 +7,41 @@ use super::intersect::RayPre;
 use super::math::{Ray, Real, V3};
 use super::query::{query_prim, query_unbounded, Query, Work};
 use super::SceneView;
+use crate::constants::SHADOW_CACHE_LIGHTS;
 
 /// No cell lists anything there: the feeler's direction lies outside its
 /// face's window.
 pub const EMPTY: u32 = u32::MAX;
+
+/// The shadow cache's leaf (`Work::shadow_leaf`) of a blocker met
+/// through a light buffer: this bit and 1 + the reference's index in
+/// `lb_refs`' pairs (no BVH slot has it: `bvh_leaf_admits` turns it away).
+/// Twin: `LB_LEAF` in lightbuf.glsl.
+pub const LB_LEAF: u32 = 1 << 31;
+
+/// Whether the shadow cache may answer for its blocker, primitive `i`
+/// (cached with `leaf`), for a feeler in light buffer cell `cell` at
+/// depth `m`: an unbounded primitive always (the walk tests them first),
+/// a bounded one when it was met through a light buffer at a reference
+/// of this cell that the walk reaches (its depth not past `m`), so that
+/// the cached test is one the walk would make.
+#[inline(always)]
+pub fn lightbuf_admits<F: Real>(s: &SceneView, i: u32, leaf: u32, cell: u32, m: F) -> bool {
+    let g = s.globals;
+    if (g.counts[0]..g.counts[1]).contains(&i) {
+        return true;
+    }
+    if cell == EMPTY || leaf & LB_LEAF == 0 || leaf == LB_LEAF {
+        return false;
+    }
+    let k = (leaf & !LB_LEAF) - 1;
+    let start = s.lb_start[cell as usize];
+    let end = s.lb_start[cell as usize + 1];
+    k >= start
+        && k < end
+        && s.lb_refs[2 * k as usize] == i
+        && F::of(f32::from_bits(s.lb_refs[2 * k as usize + 1])) <= m
+}
 
 /// The index along a face's side of coordinate `u` under the face's window
 /// (origin `o`, `s` cells per unit) at `res` cells; `None` more than a cell
@@ -107,6 +138,15 @@ pub fn lightbuf_traverse<F: Real>(
         }
         let r = s.lb_refs[2 * k as usize];
         if query_prim(s, q, &s.prims[r as usize], r, ray, pre, work) {
+            // The blocker's reference, for the shadow cache
+            // (`lightbuf_admits`).
+            if q.light < SHADOW_CACHE_LIGHTS as usize
+                && s.shadow_cache()
+                && *work.cached(q.light) == r + 1
+                && k + 1 < LB_LEAF
+            {
+                *work.cached_leaf(q.light) = LB_LEAF | (k + 1);
+            }
             return;
         }
     }
