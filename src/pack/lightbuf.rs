@@ -279,10 +279,10 @@ pub fn build(
         acc += c;
     }
     start.push(acc);
-    // Each light's stretch of the references, filed in primitive order
-    // (so that a stable sort by depth leaves ties in that order), then
-    // each cell's list sorted nearest the light first; the lights in
-    // parallel.
+    // Each light's stretch of the references, the lights in parallel. Its
+    // primitives' rectangles are filed nearest the light first (primitive
+    // order on ties; a primitive in every cell at depth 0), so that each
+    // cell's list comes out in that order without a sort of its own.
     // A reference: the primitive and the f32 bits of its least depth.
     let mut entries = vec![[0u32; 2]; total as usize];
     let mut chunks = Vec::with_capacity(lights.len());
@@ -298,23 +298,44 @@ pub fn build(
         .zip(filed.par_iter())
         .zip(counts.par_iter())
         .for_each(|((chunk, (list, _)), count)| {
-            let mut next = Vec::with_capacity(per_light + 1);
+            let mut next = Vec::with_capacity(per_light);
             let mut acc = 0u32;
             for &c in count {
                 next.push(acc);
                 acc += c;
             }
-            next.push(acc);
-            let bounds = next.clone();
+            // (depth, primitive, rectangle; u32::MAX: every cell)
+            let mut order: Vec<(f32, u32, u32)> = Vec::with_capacity(list.len() * 2);
             for (i, r) in list.iter().enumerate() {
-                cells_of(0, r, &mut |c, d| {
-                    chunk[next[c] as usize] = [i as u32, d.to_bits()];
-                    next[c] += 1;
-                });
+                match r {
+                    None => order.push((0.0, i as u32, u32::MAX)),
+                    Some(rs) => order.extend(
+                        rs.iter()
+                            .enumerate()
+                            .map(|(k, &(_, _, d))| (d, i as u32, k as u32)),
+                    ),
+                }
             }
-            for c in 0..per_light {
-                chunk[bounds[c] as usize..bounds[c + 1] as usize]
-                    .sort_by(|a, b| f32::from_bits(a[1]).total_cmp(&f32::from_bits(b[1])));
+            order.sort_unstable_by(|a, b| {
+                a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
+            });
+            for &(d, i, k) in &order {
+                let mut put = |c: usize| {
+                    chunk[next[c] as usize] = [i, d.to_bits()];
+                    next[c] += 1;
+                };
+                match &list[i as usize] {
+                    None => (0..per_light).for_each(&mut put),
+                    Some(rs) => {
+                        let (face, [u0, u1, v0, v1], _) = rs[k as usize];
+                        for iv in v0..=v1 {
+                            for iu in u0..=u1 {
+                                put((face * res as usize + iv as usize) * res as usize
+                                    + iu as usize);
+                            }
+                        }
+                    }
+                }
             }
         });
     for (_, win) in &filed {
