@@ -176,6 +176,22 @@ fn f32_down(d: f64) -> f32 {
     }
 }
 
+/// Calls `f` with each cell (within one light's `6·res²`) that the
+/// rectangle (face, iu0..=iu1, iv0..=iv1) covers; every cell for `None`.
+fn for_each_cell(res: u32, rect: Option<(usize, [u32; 4])>, mut f: impl FnMut(usize)) {
+    let res = res as usize;
+    match rect {
+        None => (0..6 * res * res).for_each(f),
+        Some((face, [u0, u1, v0, v1])) => {
+            for iv in v0 as usize..=v1 as usize {
+                for iu in u0 as usize..=u1 as usize {
+                    f((face * res + iv) * res + iu);
+                }
+            }
+        }
+    }
+}
+
 /// Builds the light buffers of `lights` (camera-relative positions) over
 /// `bounds` (the finite primitives' bounds, in `prims` order), or `None`
 /// when the references would pass `max_refs` or what the build holds
@@ -239,23 +255,6 @@ pub fn build(
             (rects, win)
         })
         .collect();
-    // Every reference's cell, in primitive order (so that a stable sort
-    // by depth leaves ties in primitive order).
-    let cells_of = |base: usize, r: &Rects, f: &mut dyn FnMut(usize, f32)| match r {
-        None => (0..per_light).for_each(|c| f(base + c, 0.0)),
-        Some(rs) => {
-            for &(face, [u0, u1, v0, v1], d) in rs {
-                for iv in v0..=v1 {
-                    for iu in u0..=u1 {
-                        f(
-                            base + (face * res as usize + iv as usize) * res as usize + iu as usize,
-                            d,
-                        );
-                    }
-                }
-            }
-        }
-    };
     // Each light's references per cell, counted in parallel and checked
     // against the allowance before anything is filed.
     let counts: Vec<Vec<u32>> = filed
@@ -263,7 +262,14 @@ pub fn build(
         .map(|(list, _)| {
             let mut count = vec![0u32; per_light];
             for r in list {
-                cells_of(0, r, &mut |c, _| count[c] += 1);
+                match r {
+                    None => for_each_cell(res, None, |c| count[c] += 1),
+                    Some(rs) => {
+                        for &(face, rect, _) in rs {
+                            for_each_cell(res, Some((face, rect)), |c| count[c] += 1);
+                        }
+                    }
+                }
             }
             count
         })
@@ -287,23 +293,20 @@ pub fn build(
     let mut entries = vec![[0u32; 2]; total as usize];
     let mut chunks = Vec::with_capacity(lights.len());
     let mut rest = entries.as_mut_slice();
-    for count in &counts {
-        let n: usize = count.iter().map(|&c| c as usize).sum();
-        let (head, tail) = rest.split_at_mut(n);
+    for li in 0..lights.len() {
+        let n = start[(li + 1) * per_light] - start[li * per_light];
+        let (head, tail) = rest.split_at_mut(n as usize);
         chunks.push(head);
         rest = tail;
     }
     chunks
         .into_par_iter()
         .zip(filed.par_iter())
-        .zip(counts.par_iter())
-        .for_each(|((chunk, (list, _)), count)| {
-            let mut next = Vec::with_capacity(per_light);
-            let mut acc = 0u32;
-            for &c in count {
-                next.push(acc);
-                acc += c;
-            }
+        .enumerate()
+        .for_each(|(li, (chunk, (list, _)))| {
+            // Where each cell's list goes next, within the light's stretch.
+            let own = &start[li * per_light..(li + 1) * per_light];
+            let mut next: Vec<u32> = own.iter().map(|&o| o - own[0]).collect();
             // (depth, primitive, rectangle; u32::MAX: every cell)
             let mut order: Vec<(f32, u32, u32)> = Vec::with_capacity(list.len() * 2);
             for (i, r) in list.iter().enumerate() {
@@ -320,22 +323,14 @@ pub fn build(
                 a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
             });
             for &(d, i, k) in &order {
-                let mut put = |c: usize| {
+                let rect = list[i as usize].as_ref().map(|rs| {
+                    let (face, rect, _) = rs[k as usize];
+                    (face, rect)
+                });
+                for_each_cell(res, rect, |c| {
                     chunk[next[c] as usize] = [i, d.to_bits()];
                     next[c] += 1;
-                };
-                match &list[i as usize] {
-                    None => (0..per_light).for_each(&mut put),
-                    Some(rs) => {
-                        let (face, [u0, u1, v0, v1], _) = rs[k as usize];
-                        for iv in v0..=v1 {
-                            for iu in u0..=u1 {
-                                put((face * res as usize + iv as usize) * res as usize
-                                    + iu as usize);
-                            }
-                        }
-                    }
-                }
+                });
             }
         });
     for (_, win) in &filed {

@@ -1483,7 +1483,7 @@ pub fn pack_with_progress(
     };
     let lightbuf = LightBufInfo {
         res: lb.res,
-        cells: lightbuf::cells(if lb.res > 0 { lights.len() } else { 0 }, lb.res) as usize,
+        cells: lightbuf::cells(lights.len(), lb.res) as usize,
         refs: lb.refs.len() / 2,
         bytes: (lb.start.len() + lb.refs.len()) * 4,
         build_seconds: lb_seconds,

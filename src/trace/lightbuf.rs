@@ -95,7 +95,8 @@ pub fn lightbuf_cell<F: Real>(s: &SceneView, res: u32, light: u32, c: V3<F>) -> 
         return None;
     }
     let face = axis * 2 + neg as u32;
-    let ncells = s.globals.counts[2] as usize * 6 * res as usize * res as usize;
+    // The face's window: after the cells' offsets, four words a face.
+    let ncells = crate::pack::lightbuf::cells(s.globals.counts[2] as usize, res) as usize;
     let w = ncells + 1 + ((light * 6 + face) * 4) as usize;
     let f = |k: usize| f32::from_bits(s.lb_start[w + k]);
     let cell = match (
