@@ -1,8 +1,9 @@
 //! Building the uniform voxel grid over the finite primitives.
 //!
 //! Resolution heuristic (documented in docs/method.md, "Voxel grid"): aim
-//! for `GRID_DENSITY` cells per primitive, cells as close to cubes as the
-//! scene's extent allows: k = cbrt(GRID_DENSITY · N / V), n_i = round(e_i · k)
+//! for `GRID_DENSITY` cells per primitive up to a million cells, then a
+//! million, then one cell per primitive (`target_cells`: C), cells as close
+//! to cubes as the scene's extent allows: k = cbrt(C / V), n_i = round(e_i · k)
 //! clamped to [1, GRID_MAX_DIM], where e_i are the extents of the bounds of
 //! all finite primitives relative to the largest (each at least 1/1000 of
 //! it, so flat scenes get a flat grid rather than a degenerate one, and
@@ -127,6 +128,26 @@ pub fn cells_of(dims: [u32; 3]) -> u64 {
     dims[0] as u64 * dims[1] as u64 * dims[2] as u64
 }
 
+/// Cells a grid of `n` primitives aims at: `GRID_DENSITY` per primitive
+/// up to `DENSE_CELLS_MAX` cells, then that many, and one per primitive
+/// once there are more primitives than that (docs/method.md, "Voxel
+/// grid"). Never fewer for more primitives.
+pub fn target_cells(n: usize) -> f64 {
+    let n = n.max(1) as f64;
+    (GRID_DENSITY as f64 * n).min(DENSE_CELLS_MAX.max(n))
+}
+
+/// Cells beyond which a grid no longer aims at `GRID_DENSITY` per
+/// primitive. With 1 M random spheres, 3 cells a primitive made 11.9 M
+/// references (cell offsets, references and the walk's arrays about
+/// 90 MB, nearly three times this machine's L3 cache), and one cell a
+/// primitive rendered 7 % faster on the CPU and 11 % on lavapipe (6.8 M
+/// references, 55 MB); at 500 k, 2 cells a primitive 2 % and 5 %;
+/// at 200 k the CPU still gained from 1 cell a primitive but lavapipe lost
+/// 8 %, and on smaller scenes lavapipe loses more (BENCHMARKS.md, "The
+/// grid's density for large scenes").
+pub const DENSE_CELLS_MAX: f64 = 1_000_000.0;
+
 /// Cells per axis for `n` primitives inside `b`.
 pub fn resolution(b: &Bounds, n: usize) -> [u32; 3] {
     let e = b.extent();
@@ -136,7 +157,7 @@ pub fn resolution(b: &Bounds, n: usize) -> [u32; 3] {
     }
     // Relative extents in [1e-3, 1]: their product cannot underflow.
     let r = e.map(|x| (x / emax).max(1e-3));
-    let k = (GRID_DENSITY as f64 * n.max(1) as f64 / (r[0] * r[1] * r[2])).cbrt();
+    let k = (target_cells(n) / (r[0] * r[1] * r[2])).cbrt();
     r.map(|x| ((x * k).round() as u32).clamp(1, GRID_MAX_DIM))
 }
 
@@ -736,6 +757,31 @@ mod tests {
             hi: [10.0, 10.0, 0.0],
         };
         assert_eq!(resolution(&flat, 1_000_000)[2], 1);
+    }
+
+    #[test]
+    fn large_grids_aim_at_fewer_cells_per_primitive() {
+        // GRID_DENSITY a primitive up to a million cells, then a million,
+        // then one a primitive; never fewer cells for more primitives.
+        assert_eq!(target_cells(0), 3.0);
+        assert_eq!(target_cells(20_000), 60_000.0);
+        assert_eq!(target_cells(333_333), 999_999.0);
+        assert_eq!(target_cells(500_000), 1e6);
+        assert_eq!(target_cells(1_000_000), 1e6);
+        assert_eq!(target_cells(4_000_000), 4e6);
+        let mut last = 0.0;
+        for n in (0..3_000_000).step_by(9_973) {
+            assert!(target_cells(n) >= last, "{n}");
+            last = target_cells(n);
+        }
+        let cube = Bounds {
+            lo: [0.0; 3],
+            hi: [1.0; 3],
+        };
+        assert_eq!(resolution(&cube, 100_000), [67, 67, 67]);
+        assert_eq!(resolution(&cube, 500_000), [100, 100, 100]);
+        assert_eq!(resolution(&cube, 1_000_000), [100, 100, 100]);
+        assert_eq!(resolution(&cube, 8_000_000), [200, 200, 200]);
     }
 
     /// No budget, no progress.
