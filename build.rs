@@ -89,6 +89,7 @@ fn const_f32(name: &str) -> f32 {
         "GRID_DENSITY" => GRID_DENSITY,
         "BVH_EXIT_WIDEN" => BVH_EXIT_WIDEN,
         "CACHE_HIT_MARGIN" => CACHE_HIT_MARGIN,
+        "CONE_PARALLEL" => CONE_PARALLEL,
         n => panic!("build.rs: add {n} to const_f32"),
     }
 }

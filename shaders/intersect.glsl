@@ -461,9 +461,10 @@ bool quadric(Prim prim, Ray ray, float tmax, out Hit h) {
 
 // Open truncated cone (cylinder when the radii are equal) around a unit
 // axis from base (radius r0) to base + length·axis (radius r1). Solved from
-// o' = o + t_c·d, the ray's point nearest the cone's middle, and
-// t = t_c + s: from the ray's own origin the constant term cancelled
-// catastrophically for a thin cone far away (src/trace/intersect.rs).
+// o' = o + t_c·d, the ray's point nearest the axis segment's point nearest
+// the ray (the middle for a ray nearly parallel to the axis), and
+// t = t_c + s; the hit within the record's tolerance (c.z) of the side
+// (src/trace/intersect.rs).
 bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     vec3 base = prim.a.xyz;
     vec3 axis = prim.b.xyz;
@@ -471,10 +472,17 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     float r1 = prim.b.w;
     float len = prim.c.x;
     PRECISE float k = (r1 - r0) / len;
-    PRECISE vec3 mid = base + axis * (len * 0.5);
-    PRECISE float tc = dot3(mid - ray.o, ray.d);
-    PRECISE vec3 w = (ray.o + ray.d * tc) - base;
     PRECISE float dv = dot3(ray.d, axis);
+    PRECISE vec3 w0 = ray.o - base;
+    PRECISE float denom = 1.0 - dv * dv;
+    PRECISE float hc = len * 0.5;
+    if (prim.c.w != 0.0 && denom > CONE_PARALLEL) {
+        PRECISE float hs = (dot3(w0, axis) - dv * dot3(w0, ray.d)) / denom;
+        hc = hs >= 0.0 ? (hs > len ? len : hs) : 0.0;
+    }
+    PRECISE vec3 near = base + axis * hc;
+    PRECISE float tc = dot3(near - ray.o, ray.d);
+    PRECISE vec3 w = (ray.o + ray.d * tc) - base;
     PRECISE float wv = dot3(w, axis);
     PRECISE vec3 pp = w - axis * wv;
     PRECISE vec3 dd = ray.d - axis * dv;
@@ -487,13 +495,22 @@ bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     if (!solve_quadratic(a, b, c, s0, s1)) {
         return false;
     }
+    float tol = prim.c.z;
     for (int j = 0; j < 2; j++) {
         float s = j == 0 ? s0 : s1;
         PRECISE float t = tc + s;
         PRECISE float hgt = wv + s * dv;
         if (t > 0.0 && t < tmax && hgt >= 0.0 && hgt <= len) {
-            h = hit_at(t);
-            return true;
+            // The point itself within tol of the side (intersect.rs).
+            PRECISE vec3 q = (ray.o + ray.d * t) - base;
+            PRECISE float hq = dot3(q, axis);
+            PRECISE vec3 perp = q - axis * hq;
+            PRECISE float lim = r0 + k * hq + tol;
+            PRECISE float lim2 = lim * lim;
+            if (dot3(perp, perp) <= lim2) {
+                h = hit_at(t);
+                return true;
+            }
         }
     }
     return false;

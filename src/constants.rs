@@ -26,6 +26,10 @@ pub const GRID_MAX_DIM: u32 = 1023;
 /// nearest listed cell is k cells away (chessboard metric) lets a ray jump
 /// over the k − 1 cells around it.
 pub const SKIP_MAX: u32 = 15;
+/// A cone's test takes the ray as parallel to its axis when 1 − (d·a)²
+/// is at most this (`trace::intersect::cone`): it then solves from the
+/// ray's point nearest the cone's middle.
+pub const CONE_PARALLEL: f32 = 1e-6;
 /// Target cells per finite primitive for the grid heuristic.
 pub const GRID_DENSITY: f32 = 3.0;
 /// Entries of the BVH traversal stack. The binary build keeps every

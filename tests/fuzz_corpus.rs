@@ -219,3 +219,16 @@ fn a_cached_blocker_for_a_feeler_beside_the_grid() {
     let o = finding("nff", "shadow-cache-long-cylinder.nff");
     assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
 }
+
+/// nff (2026-12-08, machine D): a needle cone, 455 long with radii 0 and
+/// 0.056, seen across its length from 3 units: its f32 test reported a
+/// root made up by cancellation, 0.017 off its axis (900 times its radius
+/// there) and outside its boxes. The eye rays in packets tested it before
+/// the hit that let the single ray's walk cull its leaf, so packets of 8
+/// changed the image (the target's bit-for-bit check). A cone's hit must
+/// now lie within a tolerance of its side (`pack::cone_tolerance`).
+#[test]
+fn a_needle_cone_s_made_up_root() {
+    let o = finding("nff", "packets-needle-cone.nff");
+    assert!(matches!(o, Outcome::Rendered(_)), "{o:?}");
+}

@@ -63,7 +63,7 @@ pub struct Globals {
 /// | polygon  | unit normal, d     | count, drop axis, convex, 0 |                 | vertices in extra |
 /// | box      | min                | max                     |                     |                 |
 /// | quadric  | clip min, clipped  | clip max                |                     | 3 vec4 coefficients in extra |
-/// | cone     | base, base radius  | unit axis, apex radius  | length, side (±1)   |                 |
+/// | cone     | base, base radius  | unit axis, apex radius  | length, side (±1), tolerance, long (0/1) |  |
 ///
 /// Aligned to 64 bytes (its size, so the std430 layout is unchanged): a
 /// large malloc'd array starts 16 bytes into a page, which made every

@@ -574,28 +574,78 @@ impl Builder {
                 apex_radius,
             } => {
                 self.features |= FEAT_CONE;
-                let b = self.rel(*base);
-                let a = self.rel(*apex);
-                let len = (a - b).length();
-                let axis = (a - b) / len;
-                let side = if *base_radius < 0.0 && *apex_radius < 0.0 {
-                    -1.0
-                } else {
-                    1.0
-                };
-                let (r0, r1) = (base_radius.abs(), apex_radius.abs());
-                let bb = discs_bounds(axis, b, r0, a, r1);
-                self.push_bounded(
-                    KIND_CONE,
-                    mat,
-                    0,
-                    [v4(b, r0), v4(axis, r1), [len as f32, side as f32, 0.0, 0.0]],
-                    bb,
-                );
+                let (words, bb) =
+                    cone_record(self.rel(*base), *base_radius, self.rel(*apex), *apex_radius);
+                self.push_bounded(KIND_CONE, mat, 0, words, bb);
             }
         }
     }
 }
+
+/// A cone's record words (`layout::Prim`: base and r0, unit axis and r1,
+/// length, side, tolerance) and bounds, from its end points (relative to
+/// the camera) and radii (both negative: the normals point inwards).
+pub(crate) fn cone_record(
+    b: DVec3,
+    base_radius: f64,
+    a: DVec3,
+    apex_radius: f64,
+) -> ([[f32; 4]; 3], Bounds) {
+    let len = (a - b).length();
+    let axis = (a - b) / len;
+    let side = if base_radius < 0.0 && apex_radius < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let (r0, r1) = (base_radius.abs(), apex_radius.abs());
+    let bb = discs_bounds(axis, b, r0, a, r1);
+    let tol = cone_tolerance(&bb);
+    let long = (len >= CONE_LONG_RATIO * r0.min(r1)) as u32 as f32;
+    (
+        [
+            v4(b, r0),
+            v4(axis, r1),
+            [len as f32, side as f32, tol, long],
+        ],
+        bb,
+    )
+}
+
+/// How far off its side a cone's hit point may lie (`trace::intersect::
+/// cone`, the record's `c.z`): `CONE_TOL_REL` of its box's diagonal plus
+/// `CONE_TOL_ULPS` f32 steps of its largest coordinate. Half the padding
+/// of the boxes the BVH builds around it and around each of its halves
+/// (`bvh::PAD_REL`, `bvh::PAD_ULPS`) or less, so an accepted hit lies in
+/// every box and cell that bounds the cone, whatever walk finds it; and
+/// far above a true hit's f32 error off the side (a few steps of its
+/// coordinates: a hit on a grazing ray errs along the side, not off it).
+/// The `nff` fuzz target found a root made up by cancellation: a needle
+/// 455 long with radii 0 and 0.056, whose test reported a hit 0.017 off
+/// its axis (900 times its radius there), outside its boxes, found by
+/// eye rays in packets and culled by the single ray's walk
+/// (docs/reliability.md).
+fn cone_tolerance(bb: &Bounds) -> f32 {
+    let mag = bb.lo.iter().chain(&bb.hi).fold(0f64, |m, x| m.max(x.abs()));
+    let d = bb.diagonal();
+    let tol = CONE_TOL_REL * if d.is_finite() { d } else { 0.0 }
+        + CONE_TOL_ULPS * f32::EPSILON as f64 * if mag.is_finite() { mag } else { 0.0 };
+    tol as f32
+}
+
+/// A cone at least this many times as long as its smaller radius is
+/// solved from the ray's point nearest its axis segment, a shorter one
+/// from the ray's point nearest its middle (`trace::intersect::cone`;
+/// the record's `c.w` says which): the nearest point costs a division
+/// and a dozen operations more a test (SPD rings, 4 200 cylinders 15
+/// radii long, rendered 15 % slower), and from the middle of a short
+/// cone the roots keep their precision.
+pub const CONE_LONG_RATIO: f64 = 32.0;
+
+/// See `cone_tolerance`: a quarter of `bvh::PAD_REL`.
+pub const CONE_TOL_REL: f64 = 0.25 * bvh::PAD_REL;
+/// See `cone_tolerance`: half of `bvh::PAD_ULPS`.
+pub const CONE_TOL_ULPS: f64 = 0.5 * bvh::PAD_ULPS;
 
 /// An opaque cone at least this many times as long as its larger radius
 /// goes into the BVH as two halves (`bvh_pieces`).
