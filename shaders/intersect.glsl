@@ -461,9 +461,9 @@ bool quadric(Prim prim, Ray ray, float tmax, out Hit h) {
 
 // Open truncated cone (cylinder when the radii are equal) around a unit
 // axis from base (radius r0) to base + length·axis (radius r1). Solved from
-// o' = o + t_c·d, the ray's point nearest the axis segment's point nearest
-// the ray (the middle for a ray nearly parallel to the axis), and
-// t = t_c + s; the hit within the record's tolerance (c.z) of the side
+// o' = o + t_c·d, for a long cone (c.w) the ray's point nearest the axis
+// segment's point nearest the ray, for a short one (or a ray nearly
+// parallel to the axis) its point nearest the middle, and t = t_c + s; the hit within the record's tolerance (c.z) of the side
 // (src/trace/intersect.rs).
 bool cone(Prim prim, Ray ray, float tmax, out Hit h) {
     vec3 base = prim.a.xyz;

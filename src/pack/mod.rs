@@ -583,7 +583,7 @@ impl Builder {
 }
 
 /// A cone's record words (`layout::Prim`: base and r0, unit axis and r1,
-/// length, side, tolerance) and bounds, from its end points (relative to
+/// length, side, tolerance, long) and bounds, from its end points (relative to
 /// the camera) and radii (both negative: the normals point inwards).
 pub(crate) fn cone_record(
     b: DVec3,

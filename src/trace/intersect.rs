@@ -469,14 +469,15 @@ pub fn quadric<F: Real>(prim: &Prim, extra: &[[f32; 4]], ray: &Ray<F>, tmax: F) 
 /// The quadratic is solved from o' = o + t_c·d and t = t_c + s, with
 /// t_c = (q − o)·d (any t_c is exact in theory): for a long cone (the
 /// record's `c.w`, `pack::CONE_LONG_RATIO`) q is the axis's point of
-/// closest approach to the ray, clamped to the segment, for a short one
-/// or a ray within `CONE_PARALLEL` of parallel the cone's middle. From the ray's own origin the constant term
-/// |w⊥|² − r_w² cancelled catastrophically for a thin cone far away (a
-/// branch 0.002 wide seen from 5 units had its radius wrong by a tenth,
-/// and hits fell outside its bounds); from the cone's middle it still did
-/// near the ends of a long one (the roots s of a cone of radius 0.007 hit 5
-/// units from its middle are 0.016 apart: their f32 error was 10⁻⁴, and
-/// for a needle 455 long an f32 root came out where there is none). The
+/// closest approach to the ray, clamped to the segment; for a short one,
+/// or a ray within `CONE_PARALLEL` of parallel, the cone's middle. From
+/// the ray's own origin the constant term |w⊥|² − r_w² cancelled
+/// catastrophically for a thin cone far away (a branch 0.002 wide seen
+/// from 5 units had its radius wrong by a tenth, and hits fell outside its
+/// bounds); from the cone's middle it still did near the ends of a long
+/// one (the roots s of a cone of radius 0.007 hit 5 units from its middle
+/// are 0.016 apart: their f32 error was 10⁻⁴, and for a needle 455 long
+/// an f32 root came out where there is none). The
 /// hit must also lie within the record's tolerance (`c.z`,
 /// `pack::cone_tolerance`) of the side.
 #[inline(always)]
